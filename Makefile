@@ -1,0 +1,30 @@
+# The two commands a user needs: `make demo` and `make test`. Both set everything up
+# first (tools/setup.sh skips what is already done).
+SHELL := /bin/bash
+.DEFAULT_GOAL := help
+
+.PHONY: help setup demo test test-slow lint bench clean
+
+help:  ## list the targets
+	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | expand -t 12
+
+setup:  ## create .venv, install pinned dependencies, build ros2_ws (idempotent)
+	@tools/setup.sh all
+
+demo: setup  ## run the main job: simulator + predictor + client, forecast vs truth
+	@tools/with_env.sh tools/demo.sh
+
+test: setup  ## quality gates and the default test suite (slow checks excluded)
+	@tools/with_env.sh tools/run_tests.sh
+
+test-slow: setup  ## only the slow checks (minutes each)
+	@tools/with_env.sh tools/run_tests.sh -m slow
+
+lint: setup  ## quality gates only
+	@tools/with_env.sh tools/run_tests.sh --lint-only
+
+bench: setup  ## every benchmark, JSON on stdout
+	@for suite in sim convert forecast; do tools/with_env.sh python offline/bench.py $$suite; done
+
+clean:  ## remove build products (keeps .venv)
+	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log .pytest_cache .ruff_cache

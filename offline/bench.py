@@ -1,0 +1,50 @@
+#!/usr/bin/env python3
+"""Run a benchmark and print its figures as JSON.
+
+Each benchmark measures its subject against a baseline in the same run (a ratio, not
+an absolute time that depends on the machine) and states its goals beside the figures.
+
+    python offline/bench.py sim        # batch simulation vs real time
+    python offline/bench.py convert    # bag conversion vs a bare rosbags pass
+    python offline/bench.py forecast   # predictor latency vs a naive loop
+"""
+
+import argparse
+import importlib
+import json
+import sys
+
+# Each suite is a module in offline/benchmarks with add_arguments(parser) and
+# run(args) -> dict; it is imported only when chosen, so one suite's heavy
+# dependencies never slow another.
+SUITES = {
+    'sim': ('benchmarks.sim', 'paper-sized batch simulation (96 runs x 1 h)'),
+    'convert': ('benchmarks.convert', 'bag-to-dataset conversion throughput'),
+    'forecast': ('benchmarks.forecast', '900-step forecast latency and throughput'),
+}
+
+
+def main(argv=None) -> int:
+    """Parse the command line, run one suite, print its JSON; return the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = parser.add_subparsers(dest='suite', required=True, metavar='SUITE')
+    modules = {}
+    for name, (module_name, help_text) in SUITES.items():
+        try:
+            module = importlib.import_module(module_name)
+        except ModuleNotFoundError as exc:
+            if exc.name != module_name:
+                raise
+            continue
+        modules[name] = module
+        module.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
+    args = parser.parse_args(argv)
+    result = modules[args.suite].run(args)
+    json.dump(result, sys.stdout, indent=2)
+    sys.stdout.write('\n')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,1 @@
+"""ROS-free dataset format shared by simulation and bag conversion, and the converter."""

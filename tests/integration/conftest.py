@@ -1,0 +1,153 @@
+"""Fixtures for tests that run installed ROS 2 executables as separate processes.
+
+Every process talks DDS on loopback only (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) in
+a domain of this test session's own, and is stopped at teardown whatever the test's
+outcome: SIGINT first (nodes shut down cleanly), then SIGTERM, then SIGKILL, each to
+the whole process group.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+INSTALL = REPO / 'ros2_ws' / 'install'
+
+# The test process itself joins the graph (clients, subscribers), so the DDS settings
+# must be in place before rclpy is imported anywhere.
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('ROS_DOMAIN_ID', str(110 + os.getpid() % 100))
+os.environ.setdefault('ROS_LOG_DIR', str(REPO / 'ros2_ws' / 'log' / 'ros'))
+
+
+def installed_executable(package: str, name: str) -> Path:
+    """Path where `ros2 run PACKAGE NAME` finds the executable (install/PKG/lib/PKG)."""
+    path = INSTALL / package / 'lib' / package / name
+    if not path.is_file():
+        pytest.fail(f'{path} is missing: build the workspace (make setup) first')
+    return path
+
+
+@dataclass
+class Process:
+    """A started child process and the file its output goes to."""
+
+    popen: subprocess.Popen
+    log_path: Path
+    name: str
+
+    def output(self) -> str:
+        """Everything the process printed so far (stdout and stderr)."""
+        return self.log_path.read_text(errors='replace')
+
+    def alive(self) -> bool:
+        """Return True while the process runs."""
+        return self.popen.poll() is None
+
+
+@dataclass
+class Launcher:
+    """Starts processes for one test and stops all of them afterwards."""
+
+    log_dir: Path
+    processes: list[Process] = field(default_factory=list)
+
+    def start(self, argv: list[str], name: str, env: dict | None = None) -> Process:
+        """Start argv in its own process group, output to a log file."""
+        log_path = self.log_dir / f'{name}.log'
+        child_env = dict(os.environ, PYTHONUNBUFFERED='1', **(env or {}))
+        with open(log_path, 'wb') as log:
+            popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
+                                     env=child_env, start_new_session=True, cwd=REPO)
+        process = Process(popen, log_path, name)
+        self.processes.append(process)
+        return process
+
+    def start_node(self, package: str, executable: str, *args: str,
+                   name: str | None = None, env: dict | None = None) -> Process:
+        """Start an installed node executable, as `ros2 run` would."""
+        argv = [str(installed_executable(package, executable)), *args]
+        return self.start(argv, name or executable, env)
+
+    def start_script(self, script: Path, *args: str, name: str | None = None,
+                     env: dict | None = None) -> Process:
+        """Start a Python script with this interpreter (the venv's)."""
+        return self.start([sys.executable, str(script), *args], name or script.stem, env)
+
+    def stop(self, process: Process, timeout: float = 10.0) -> int:
+        """Stop one process group gently, then firmly; return its exit code."""
+        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
+                          (signal.SIGKILL, 3.0)):
+            if process.popen.poll() is not None:
+                break
+            try:
+                os.killpg(process.popen.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                process.popen.wait(wait)
+            except subprocess.TimeoutExpired:
+                continue
+        return process.popen.wait(5.0)
+
+    def stop_all(self) -> None:
+        """Stop every process this launcher started."""
+        for process in reversed(self.processes):
+            self.stop(process)
+
+
+@pytest.fixture
+def launcher(tmp_path, request):
+    """Start processes in a test; all are stopped at teardown, pass or fail."""
+    runner = Launcher(tmp_path)
+    yield runner
+    runner.stop_all()
+    failed = getattr(request.node, 'rep_call', None)
+    if failed is not None and failed.failed:
+        for process in runner.processes:
+            sys.stderr.write(f'--- output of {process.name} ---\n{process.output()[-4000:]}\n')
+
+
+@pytest.hookimpl(wrapper=True, tryfirst=True)
+def pytest_runtest_makereport(item, call):
+    """Keep each phase's report on the test item, so fixtures can see failures."""
+    report = yield
+    setattr(item, 'rep_' + report.when, report)
+    return report
+
+
+@pytest.fixture
+def ros_node():
+    """Give the test an rclpy node with its own context; shut it down afterwards."""
+    import rclpy
+
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node(f'test_client_{os.getpid()}', context=context)
+    yield node
+    node.destroy_node()
+    rclpy.shutdown(context=context)
+
+
+def spin_until(node, predicate, timeout: float) -> bool:
+    """Spin node until predicate() is true or timeout seconds pass; return predicate()."""
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    deadline = time.monotonic() + timeout
+    try:
+        while time.monotonic() < deadline and not predicate():
+            executor.spin_once(timeout_sec=0.05)
+    finally:
+        executor.remove_node(node)
+        executor.shutdown()
+    return predicate()

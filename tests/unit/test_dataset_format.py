@@ -1,0 +1,80 @@
+"""vessel_datasets.format: the dataset contract between producers and consumers."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from vessel_datasets.format import (
+    REQUIRED_COLUMNS,
+    DatasetError,
+    read_dataset,
+    split_runs,
+    write_dataset,
+)
+
+
+def make_run(n=10, offset=0.0):
+    data = {c: np.linspace(0, 1, n) + offset for c in REQUIRED_COLUMNS}
+    data['t'] = np.arange(n, dtype=float)
+    return pd.DataFrame(data)
+
+
+def test_split_is_by_whole_runs_seeded_and_sized_60_10_30():
+    ids = [f'run_{i:03d}' for i in range(96)]
+    split = split_runs(ids, seed=3)
+    assert [len(split[s]) for s in ('train', 'val', 'test')] == [57, 10, 29]
+    assert sorted(split['train'] + split['val'] + split['test']) == ids
+    assert split == split_runs(list(reversed(ids)), seed=3)
+    assert split != split_runs(ids, seed=4)
+
+
+def test_every_split_gets_a_run_when_there_are_few():
+    split = split_runs(['a', 'b', 'c'], seed=0)
+    assert sorted(len(v) for v in split.values()) == [1, 1, 1]
+
+
+def test_bad_fractions_are_refused():
+    with pytest.raises(DatasetError, match='summing to 1'):
+        split_runs(['a'], seed=0, fractions=(0.5, 0.5, 0.5))
+
+
+def test_round_trip_keeps_tables_units_and_split(tmp_path):
+    runs = {f'run_{i}': make_run(offset=i) for i in range(5)}
+    write_dataset(tmp_path, runs, rate_hz=1.0, provenance={'tool': 'test'}, seed=1,
+                  run_sources={'run_0': {'bag': 'x.mcap'}})
+    ds = read_dataset(tmp_path)
+    assert ds.rate_hz == 1.0
+    assert sorted(ds.run_ids()) == sorted(runs)
+    assert sum(len(ds.run_ids(s)) for s in ('train', 'val', 'test')) == 5
+    pd.testing.assert_frame_equal(ds.load('run_3'), runs['run_3'])
+    manifest = json.loads((tmp_path / 'manifest.json').read_text())
+    assert manifest['columns']['u']['unit'] == 'm/s'
+    assert manifest['columns']['n']['unit'] == 'rad/s'
+    assert manifest['runs'][0]['source'] == {'bag': 'x.mcap'}
+
+
+def test_explicit_split_is_kept_and_checked(tmp_path):
+    runs = {'a': make_run(), 'b': make_run()}
+    write_dataset(tmp_path, runs, rate_hz=1.0, provenance={},
+                  split={'train': ['a'], 'test': ['b']})
+    assert read_dataset(tmp_path).run_ids('test') == ['b']
+    with pytest.raises(DatasetError, match='unknown or repeated'):
+        write_dataset(tmp_path / 'x', runs, rate_hz=1.0, provenance={},
+                      split={'train': ['a', 'zzz']})
+
+
+@pytest.mark.parametrize('corrupt, message', [
+    (lambda t: t.drop(columns=['phi']), 'lacks columns'),
+    (lambda t: t.assign(u=np.nan), 'NaN/Inf'),
+    (lambda t: t.assign(t=t['t'][::-1].to_numpy()), 'strictly increasing'),
+])
+def test_invalid_runs_are_refused_with_the_reason(tmp_path, corrupt, message):
+    with pytest.raises(DatasetError, match=message):
+        write_dataset(tmp_path, {'bad': corrupt(make_run())}, rate_hz=1.0, provenance={})
+
+
+def test_a_directory_without_manifest_is_not_a_dataset(tmp_path):
+    with pytest.raises(DatasetError, match='not a dataset'):
+        read_dataset(tmp_path)

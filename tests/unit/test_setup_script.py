@@ -1,0 +1,67 @@
+"""tools/setup.sh: each bad situation ends in one clear line, a broken venv is repaired."""
+
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+SETUP = REPO / 'tools' / 'setup.sh'
+
+
+def run_setup(stage, env_overrides, timeout=240):
+    env = {k: v for k, v in os.environ.items() if not k.startswith(('PIP_', 'VIRTUAL_ENV'))}
+    env.update(env_overrides)
+    return subprocess.run(['bash', str(SETUP), stage], capture_output=True, text=True,
+                          env=env, timeout=timeout)
+
+
+def error_lines(stderr):
+    return [line for line in stderr.splitlines() if line.startswith('setup: error:')]
+
+
+def test_wrong_python_version_is_one_clear_line(tmp_path):
+    fake = tmp_path / 'python3.9'
+    fake.write_text('#!/bin/sh\necho "3.9"\n')
+    fake.chmod(0o755)
+    result = run_setup('python', {'PYTHON': str(fake), 'VENV': str(tmp_path / 'venv')})
+    assert result.returncode != 0
+    lines = error_lines(result.stderr)
+    assert len(lines) == 1, result.stderr
+    assert 'Python 3.11 is required' in lines[0] and str(fake) in lines[0]
+
+
+def test_broken_half_made_venv_is_repaired_not_fatal(tmp_path):
+    venv = tmp_path / 'venv'
+    (venv / 'bin').mkdir(parents=True)
+    (venv / 'pyvenv.cfg').write_text('home = /nowhere\n')
+    (venv / 'bin' / 'python').write_text('#!/bin/sh\nexit 127\n')
+    (venv / 'bin' / 'python').chmod(0o755)
+    result = run_setup('venv', {'PYTHON': sys.executable if sys.version_info[:2] == (3, 11)
+                                else 'python3.11', 'VENV': str(venv)})
+    assert result.returncode == 0, result.stderr
+    assert 'repairing' in result.stderr and 'does not run' in result.stderr
+    check = subprocess.run([str(venv / 'bin' / 'python'), '-m', 'pip', '--version'],
+                           capture_output=True, text=True)
+    assert check.returncode == 0
+
+
+def test_no_network_to_the_registry_is_one_clear_line(tmp_path):
+    # Port 9 (discard) on loopback refuses connections: a registry that cannot be reached.
+    result = run_setup('deps', {'VENV': str(tmp_path / 'venv'),
+                                'PIP_CONFIG_FILE': os.devnull,
+                                'PIP_INDEX_URL': 'http://127.0.0.1:9/simple',
+                                'PIP_FIND_LINKS': ''})
+    assert result.returncode != 0
+    lines = error_lines(result.stderr)
+    assert len(lines) == 1, result.stderr
+    assert 'no network to the package registry' in lines[0]
+    assert '127.0.0.1:9' in lines[0]
+
+
+@pytest.mark.parametrize('stage', ['bogus'])
+def test_unknown_stage_is_rejected(stage):
+    result = run_setup(stage, {})
+    assert result.returncode != 0 and 'unknown stage' in error_lines(result.stderr)[0]

