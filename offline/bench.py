@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Run a benchmark and print its figures as JSON.
+"""
+Run a benchmark and print its figures as JSON.
 
 Each benchmark measures its subject against a baseline in the same run (a ratio, not
 an absolute time that depends on the machine) and states its goals beside the figures.

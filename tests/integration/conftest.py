@@ -1,4 +1,5 @@
-"""Fixtures for tests that run installed ROS 2 executables as separate processes.
+"""
+Fixtures for tests that run installed ROS 2 executables as separate processes.
 
 Every process talks DDS on loopback only (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) in
 a domain of this test session's own, and is stopped at teardown whatever the test's

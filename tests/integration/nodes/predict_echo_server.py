@@ -1,4 +1,5 @@
-"""A stand-in predictor for interface tests: answers Predict and publishes a Forecast.
+"""
+A stand-in predictor for interface tests: answers Predict and publishes a Forecast.
 
 Each forecast is a deterministic function of its plan (hybrid[k, 0] = shaft_speed[k],
 physics = hybrid / 2), so the client can check that every field crossed the process

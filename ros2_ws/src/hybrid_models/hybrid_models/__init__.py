@@ -1,4 +1,5 @@
-"""ROS-free models and training for multistep vehicle-state prediction.
+"""
+ROS-free models and training for multistep vehicle-state prediction.
 
 Regression components, QLag, the LSTM baseline, the constrained hybrid residual model,
 two-phase training, metrics and checkpoints.

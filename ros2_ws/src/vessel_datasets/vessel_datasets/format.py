@@ -1,4 +1,5 @@
-"""Read and write the dataset format shared by simulation and bag conversion.
+"""
+Read and write the dataset format shared by simulation and bag conversion.
 
 A dataset is a directory with ``manifest.json`` and one Parquet table per run in
 ``runs/``; docs/conventions.md documents the columns, units and frames. This module is
@@ -64,7 +65,8 @@ class DatasetError(ValueError):
 
 def split_runs(run_ids: Sequence[str], seed: int,
                fractions: Sequence[float] = DEFAULT_FRACTIONS) -> dict[str, list[str]]:
-    """Assign whole runs to train/val/test by a seeded shuffle.
+    """
+    Assign whole runs to train/val/test by a seeded shuffle.
 
     Counts are rounded so that they sum to the number of runs and every split with a
     positive fraction gets at least one run when there are enough runs.
@@ -123,7 +125,8 @@ def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], 
                   split: Mapping[str, Iterable[str]] | None = None,
                   run_sources: Mapping[str, Mapping] | None = None,
                   extra: Mapping | None = None) -> Path:
-    """Write runs and their manifest to ``out_dir``; return the manifest path.
+    """
+    Write runs and their manifest to ``out_dir``; return the manifest path.
 
     ``split`` overrides the seeded 60/10/30 assignment with explicit run ids.
     ``run_sources`` gives per-run provenance (e.g. the bag and time span it came
