@@ -202,7 +202,7 @@ class Dataset:
 
     @property
     def rate_hz(self) -> float:
-        """Sampling rate of every run (Hz)."""
+        """Return the sampling rate of every run (Hz)."""
         return float(self.manifest['rate_hz'])
 
     def run_ids(self, split: str | None = None) -> list[str]:
