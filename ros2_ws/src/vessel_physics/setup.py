@@ -9,12 +9,14 @@ setup(
     name=PACKAGE,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
+    # Isherwood (1972) wind coefficient table, read at run time by vessel_physics.wind.
+    package_data={PACKAGE: ['data/*.csv']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
     ],
-    install_requires=['setuptools'],
+    install_requires=['setuptools', 'numpy', 'scipy', 'pyyaml', 'array-api-compat'],
     zip_safe=True,
     maintainer='hybrid-ship maintainers',
     maintainer_email='maintainers@hybrid-ship.dev',

@@ -52,7 +52,7 @@ COLUMN_DOCS: dict[str, dict[str, str]] = {
     'wind_dir_sin': {'unit': '1',
                      'description': 'sin of that angle (wind from starboard +)'},
 }
-for _state in STATE_COLUMNS:
+for _state in STATE_COLUMNS + POSE_COLUMNS:
     COLUMN_DOCS[_state + '_true'] = {
         'unit': COLUMN_DOCS[_state]['unit'],
         'description': 'noise-free truth of ' + _state + ' (simulated data only)',

@@ -1,0 +1,29 @@
+"""
+Array API namespace lookup shared by every term that must run on numpy and torch.
+
+Terms are written against the Python Array API standard, so one implementation serves
+the numpy simulator and the torch hybrid models (with autograd). NumPy >= 2 implements
+the standard in its main namespace, so numpy inputs get ``numpy`` itself: the same
+functions without array_api_compat's wrappers in the simulator's hot loop.
+"""
+
+from __future__ import annotations
+
+import array_api_compat
+import numpy as np
+
+
+def namespace(*arrays):
+    """Return the Array API namespace of ``arrays`` (``numpy`` for numpy inputs)."""
+    if type(arrays[0]) is np.ndarray and all(type(a) is np.ndarray for a in arrays[1:]):
+        return np
+    if all(isinstance(a, (np.ndarray, np.generic, float, int)) for a in arrays):
+        return np
+    return array_api_compat.array_namespace(*arrays)
+
+
+def constant(value, like, xp):
+    """Return numpy ``value`` as an array of ``like``'s namespace, dtype and device."""
+    if xp is np:
+        return np.asarray(value, dtype=like.dtype)
+    return xp.asarray(value, dtype=like.dtype, device=array_api_compat.device(like))

@@ -1,0 +1,220 @@
+"""
+Vessel parameters: a frozen dataclass with textbook names, loaded from YAML.
+
+Naming scheme (Fossen 2011; Perez, Ross & Fossen 2006). A coefficient is the DOF letter
+(X surge, Y sway, K roll, N yaw) followed by the factors of its feature in the order the
+textbook writes them, with ``a<q>`` meaning ``|q|`` and ``phi`` the roll angle:
+
+=================  ====================  ==========================
+textbook           name here             feature
+=================  ====================  ==========================
+X|u|u              ``Xauu``              ``|u| u``
+Y|u|v              ``Yauv``              ``|u| v``
+Yv|r|              ``Yvar``              ``v |r|``
+Yφ|uv|             ``Yphiauv``           ``phi |u v|``
+Nφu|r|             ``Nphiuar``           ``phi u |r|``
+Kφφφ               ``Kphiphiphi``        ``phi**3``
+Xu' (added mass)   ``Xudot``             coefficient of ``du/dt``
+=================  ====================  ==========================
+
+Coordinates are Fossen's FRD body frame with the origin CO on the centre line, midships,
+in the waterline (the hull coefficients' reference point); ``xG``, ``zG`` locate the
+centre of gravity from CO. All values SI (kg, m, s, N, rad).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, fields
+import math
+from pathlib import Path
+
+import yaml
+
+from vessel_physics.errors import ConfigError, did_you_mean
+
+GRAVITY = 9.81  # m/s^2, standard value used by the MSS navalvessel data
+
+# Archimedes: a floating hull weighs rho * displacement; files may round m a little.
+MASS_TOLERANCE = 0.01
+
+
+@dataclass(frozen=True)
+class VesselParams:
+    """Parameters of one 4-DOF (surge, sway, roll, yaw) vessel model; SI units, FRD frame."""
+
+    name: str
+    # Particulars and rigid body
+    rho: float          # water density, kg/m^3
+    m: float            # mass, kg
+    displacement: float  # displaced volume nabla, m^3
+    GM: float           # transverse metacentric height, m
+    Ixx: float          # roll inertia about CO, kg m^2
+    Izz: float          # yaw inertia about CO, kg m^2
+    xG: float           # centre of gravity forward of CO, m
+    zG: float           # centre of gravity below CO (negative = above), m
+    Lpp: float          # length between perpendiculars, m
+    B: float            # beam, m
+    T: float            # draught, m
+    # Added mass (Perez, Ross & Fossen 2006)
+    Xudot: float
+    Yvdot: float
+    Ypdot: float
+    Yrdot: float
+    Kvdot: float
+    Kpdot: float
+    Krdot: float
+    Nvdot: float
+    Npdot: float
+    Nrdot: float
+    # Hull damping and cross-flow (Blanke & Christensen 1993 via Perez et al. 2006)
+    Xauu: float
+    Xvr: float
+    Yauv: float
+    Yur: float
+    Yvav: float
+    Yvar: float
+    Yrav: float
+    Yphiauv: float
+    Yphiaur: float
+    Yphiuu: float
+    Kauv: float
+    Kur: float
+    Kvav: float
+    Kvar: float
+    Krav: float
+    Kphiauv: float
+    Kphiaur: float
+    Kphiuu: float
+    Kaup: float
+    Kpap: float
+    Kp: float
+    Kphiphiphi: float
+    Nauv: float
+    Naur: float
+    Nrar: float
+    Nrav: float
+    Nphiauv: float
+    Nphiuar: float
+    Nphiuau: float
+    # Twin rudder-propellers on one shaft speed (Baier et al. Pro model)
+    prop_diameter: float   # m
+    wake_fraction: float   # 1
+    KT0: float             # KT(J) = KT0 + KT1 J + KT2 J^2
+    KT1: float
+    KT2: float
+    prop_lx: float         # propeller x from CO, m (negative = aft)
+    prop_ly: float         # lateral distance of each unit from the centre line, m (> 0)
+    prop_lz: float         # propeller z from CO, m (positive = below)
+    # Actuators
+    rudder_max_angle: float      # rad
+    rudder_max_rate: float       # rad/s
+    rudder_time_constant: float  # s
+    shaft_max_speed: float       # rad/s
+    shaft_max_accel: float       # rad/s^2
+    shaft_time_constant: float   # s
+    # Above-water geometry for Isherwood (1972) wind loads
+    Loa: float        # length over all, m
+    AL: float         # lateral projected area, m^2
+    AF: float         # frontal projected area, m^2
+    ASS: float        # lateral projected area of the superstructure, m^2
+    wind_S: float     # perimeter of the lateral projection (no waterline, masts), m
+    wind_C: float     # distance from the bow of the lateral-area centroid, m
+    wind_M: float     # number of distinct groups of masts or king posts
+    wind_height: float  # lateral-area centroid above CO, m (K_wind = wind_height * Y_wind)
+
+    @property
+    def restoring_roll(self) -> float:
+        """Linear roll restoring coefficient rho g nabla GM (N m/rad)."""
+        return self.rho * GRAVITY * self.displacement * self.GM
+
+    def replace(self, **changes) -> VesselParams:
+        """Return a copy with some parameters changed (validated like a loaded file)."""
+        return _validated(dataclasses.replace(self, **changes))
+
+
+_FLOAT_FIELDS = tuple(f.name for f in fields(VesselParams) if f.name != 'name')
+_POSITIVE = ('rho', 'm', 'displacement', 'GM', 'Ixx', 'Izz', 'Lpp', 'B', 'T',
+             'prop_diameter', 'prop_ly', 'rudder_max_angle', 'rudder_max_rate',
+             'rudder_time_constant', 'shaft_max_speed', 'shaft_max_accel',
+             'shaft_time_constant', 'Loa', 'AL', 'AF', 'wind_S', 'wind_C')
+
+
+def _validated(params: VesselParams, source: str = 'vessel') -> VesselParams:
+    for key in _FLOAT_FIELDS:
+        value = getattr(params, key)
+        if not math.isfinite(value):
+            raise ConfigError(f'{source}: {key}: must be a finite number, got {value!r}')
+    for key in _POSITIVE:
+        if getattr(params, key) <= 0:
+            raise ConfigError(f'{source}: {key}: must be > 0, got {getattr(params, key)!r}')
+    if not 0 <= params.wake_fraction < 1:
+        raise ConfigError(f'{source}: wake_fraction: must be in [0, 1), got '
+                          f'{params.wake_fraction!r}')
+    archimedes = params.rho * params.displacement
+    if abs(params.m - archimedes) > MASS_TOLERANCE * params.m:
+        raise ConfigError(f'{source}: m: must equal rho * displacement = {archimedes:.6g} kg '
+                          f'within {MASS_TOLERANCE:.0%} (a floating hull), got {params.m!r}')
+    return params
+
+
+def params_from_dict(data: dict, source: str = 'vessel') -> VesselParams:
+    """Build validated parameters from a mapping with exactly the dataclass's keys."""
+    if not isinstance(data, dict):
+        raise ConfigError(f'{source}: expected a mapping of parameter names to numbers, got '
+                          f'{type(data).__name__}')
+    known = {f.name for f in fields(VesselParams)}
+    for key in data:
+        if key not in known:
+            raise ConfigError(f'{source}: unknown parameter {key!r}'
+                              f'{did_you_mean(str(key), known)}')
+    missing = sorted(known - set(data))
+    if missing:
+        raise ConfigError(f'{source}: missing parameters {missing}')
+    values = {}
+    for key in _FLOAT_FIELDS:
+        value = data[key]
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            hint = ' (YAML reads 1e6 as text: write 1.0e+6)' if isinstance(value, str) else ''
+            raise ConfigError(f'{source}: {key}: must be a number, got {value!r}{hint}')
+        values[key] = float(value)
+    return _validated(VesselParams(name=str(data['name']), **values), source)
+
+
+def load_vessel(path: str | Path) -> VesselParams:
+    """Load and validate a vessel parameter YAML file."""
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise ConfigError(f'{path}: cannot read vessel file ({exc.strerror})') from None
+    except yaml.YAMLError as exc:
+        raise ConfigError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') from None
+    return params_from_dict(data, source=str(path))
+
+
+def config_dir() -> Path:
+    """Directory of the packaged YAML files (source tree or colcon/pip install)."""
+    here = Path(__file__).resolve().parent
+    candidates = [here.parent / 'config']
+    # colcon: install/<pkg>/lib/pythonX.Y/site-packages/<pkg> -> install/<pkg>/share/<pkg>
+    candidates += [p / 'share' / 'vessel_physics' / 'config' for p in here.parents]
+    for candidate in candidates:
+        if (candidate / 'patrol_vessel.yaml').is_file():
+            return candidate
+    raise ConfigError('vessel_physics: cannot find the package config directory '
+                      '(looked beside the sources and in share/vessel_physics/config)')
+
+
+def load_named_vessel(name: str, base: Path | None = None) -> VesselParams:
+    """Load a vessel by file name or path; relative names look in ``base``, then config_dir()."""
+    path = Path(name)
+    if not path.suffix:
+        path = path.with_suffix('.yaml')
+    if path.is_absolute():
+        return load_vessel(path)
+    for directory in ([base] if base is not None else []) + [config_dir()]:
+        if (directory / path).is_file():
+            return load_vessel(directory / path)
+    raise ConfigError(f'vessel: no vessel file {str(path)!r} (looked in '
+                      f'{", ".join(str(d) for d in ([base] if base else []) + [config_dir()])})')

@@ -1,0 +1,228 @@
+"""
+Named generalized-force terms of the 4-DOF vessel model, and their registry.
+
+Every term has the signature ``term(z, c, params) -> tau`` with
+
+- ``z`` (..., 5): [u, v, p, r, phi]: surge, sway (m/s), roll, yaw rate (rad/s) in FRD and
+  roll angle (rad). Hydrodynamic terms want u, v *through the water*; terms registered
+  with ``velocity='ground'`` want them over ground (they differ only under a current);
+- ``c`` (..., 6): [n, delta_port, delta_stbd, wind_speed, wind_dir_cos, wind_dir_sin] as
+  in docs/conventions.md: shaft speed (rad/s), rudder-propeller angles (rad, positive
+  turns the thrust to starboard), true wind speed (m/s) and the cos/sin of the angle it
+  comes from relative to the bow;
+- ``tau`` (..., 4): [X, Y, K, N] about CO in FRD (N, N, N m, N m).
+
+They are written against the Array API standard (see ``arrays``), so the same code runs
+on numpy arrays in the simulator and on torch tensors, with autograd, in the hybrid
+models. ``total_force`` sums any subset by name; the registry ``TERMS`` tells which DOFs a
+term acts on and its physical category, for model building and the diagnosis library.
+Sources: Perez, Ross & Fossen (2006); Blanke & Christensen (1993); Fossen (2011).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+from functools import lru_cache
+import math
+
+import numpy as np
+
+from vessel_physics.arrays import constant, namespace
+from vessel_physics.params import VesselParams
+from vessel_physics.wind import wind_force
+
+DOFS = ('X', 'Y', 'K', 'N')
+
+
+def rigid_body_coriolis(z, c, params: VesselParams):
+    """Rigid-body Coriolis and centripetal forces -C_RB(nu) nu with CG at (xG, 0, zG)."""
+    xp = namespace(z)
+    u, v, p, r = z[..., 0], z[..., 1], z[..., 2], z[..., 3]
+    m = params.m
+    return xp.stack([
+        m * (v * r + params.xG * r * r - params.zG * p * r),
+        -m * u * r,
+        m * params.zG * u * r,
+        -m * params.xG * u * r,
+    ], axis=-1)
+
+
+def restoring(z, c, params: VesselParams):
+    """Roll restoring moment with cubic GZ term: -rho g nabla GM phi + Kphiphiphi phi^3."""
+    xp = namespace(z)
+    phi = z[..., 4]
+    zero = xp.zeros_like(phi)
+    roll = -params.restoring_roll * phi + params.Kphiphiphi * phi * phi * phi
+    return xp.stack([zero, zero, roll, zero], axis=-1)
+
+
+def restoring_linear(z, c, params: VesselParams):
+    """Linearized restoring -G eta: only roll, -rho g nabla GM phi (Min model)."""
+    xp = namespace(z)
+    phi = z[..., 4]
+    zero = xp.zeros_like(phi)
+    return xp.stack([zero, zero, -params.restoring_roll * phi, zero], axis=-1)
+
+
+# Hull damping features (Blanke & Christensen 1993) and the coefficient of each per DOF.
+HULL_DAMPING_FEATURES = ('|u|u', 'vr', '|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|',
+                         'phi|ur|', 'phiuu', '|u|p', 'p|p|', 'p', '|u|r', 'r|r|', 'phiu|r|',
+                         'phiu|u|')
+_HULL_DAMPING_COEFFICIENTS = {   # feature -> (X, Y, K, N) parameter names
+    '|u|u': ('Xauu', None, None, None),
+    'vr': ('Xvr', None, None, None),
+    '|u|v': (None, 'Yauv', 'Kauv', 'Nauv'),
+    'ur': (None, 'Yur', 'Kur', None),
+    'v|v|': (None, 'Yvav', 'Kvav', None),
+    'v|r|': (None, 'Yvar', 'Kvar', None),
+    'r|v|': (None, 'Yrav', 'Krav', 'Nrav'),
+    'phi|uv|': (None, 'Yphiauv', 'Kphiauv', 'Nphiauv'),
+    'phi|ur|': (None, 'Yphiaur', 'Kphiaur', None),
+    'phiuu': (None, 'Yphiuu', 'Kphiuu', None),
+    '|u|p': (None, None, 'Kaup', None),
+    'p|p|': (None, None, 'Kpap', None),
+    'p': (None, None, 'Kp', None),
+    '|u|r': (None, None, None, 'Naur'),
+    'r|r|': (None, None, None, 'Nrar'),
+    'phiu|r|': (None, None, None, 'Nphiuar'),
+    'phiu|u|': (None, None, None, 'Nphiuau'),
+}
+
+
+def hull_damping_features(z):
+    """Return the hull damping features (..., 17) in the order of HULL_DAMPING_FEATURES."""
+    xp = namespace(z)
+    u, v, p, r, phi = z[..., 0], z[..., 1], z[..., 2], z[..., 3], z[..., 4]
+    au, av, ar = xp.abs(u), xp.abs(v), xp.abs(r)
+    auu, aur = au * u, au * ar
+    return xp.stack([auu, v * r, au * v, u * r, v * av, v * ar, r * av, phi * (au * av),
+                     phi * aur, phi * (u * u), au * p, p * xp.abs(p), p, au * r, r * ar,
+                     phi * (u * ar), phi * auu], axis=-1)
+
+
+@lru_cache(maxsize=32)
+def hull_damping_matrix(params: VesselParams) -> np.ndarray:
+    """Coefficient matrix (17, 4): hull_damping = features @ matrix."""
+    matrix = np.zeros((len(HULL_DAMPING_FEATURES), 4))
+    for i, feature in enumerate(HULL_DAMPING_FEATURES):
+        for j, name in enumerate(_HULL_DAMPING_COEFFICIENTS[feature]):
+            if name is not None:
+                matrix[i, j] = getattr(params, name)
+    return matrix
+
+
+def hull_damping(z, c, params: VesselParams):
+    """
+    Nonlinear hull damping and cross-flow forces (Blanke & Christensen 1993 set).
+
+    X: X|u|u |u|u + Xvr v r; Y: Y|u|v |u|v + Yur u r + Yv|v| v|v| + Yv|r| v|r| + Yr|v| r|v|
+    + phi (Yphi|uv| |uv| + Yphi|ur| |ur| + Yphiuu u^2); K: the same kinds with K plus
+    K|u|p |u|p + Kp|p| p|p| + Kp p; N: N|u|v |u|v + N|u|r |u|r + Nr|r| r|r| + Nr|v| r|v|
+    + phi (Nphi|uv| |uv| + Nphiu|r| u|r| + Nphiu|u| u|u|).
+    """
+    xp = namespace(z)
+    return hull_damping_features(z) @ constant(hull_damping_matrix(params), z, xp)
+
+
+def unit_thrust(u, v, n_rps, delta, params: VesselParams):
+    """
+    Thrust (N, >= 0) of rudder-propellers at angles ``delta`` and ``n_rps`` (rev/s).
+
+    Va = max(0, (1 - w)(u cos delta + v sin delta)), J = Va / (n D),
+    T = max(0, rho D^4 n^2 KT(J)) with KT = KT0 + KT1 J + KT2 J^2, written as
+    rho (KT0 D^4 n^2 + KT1 D^3 n Va + KT2 D^2 Va^2) so that n = 0 needs no division.
+    Arguments broadcast against each other.
+    """
+    xp = namespace(delta)
+    d = params.prop_diameter
+    va = xp.maximum((1.0 - params.wake_fraction) * (u * xp.cos(delta) + v * xp.sin(delta)),
+                    0.0)
+    thrust = params.rho * d * d * (params.KT0 * d * d * n_rps * n_rps
+                                   + params.KT1 * d * n_rps * va + params.KT2 * va * va)
+    return xp.maximum(thrust, 0.0)
+
+
+def propulsion(z, c, params: VesselParams):
+    """
+    Twin rudder-propellers on one shaft speed: thrust vectors and their moments about CO.
+
+    Unit i at (lx, +-ly, lz) with force (T cos d, T sin d, 0): X = sum Fx, Y = sum Fy,
+    K = -lz Y (a side force below CO heels away from it), N = lx Y + ly (Fx_port - Fx_stbd).
+    """
+    xp = namespace(z, c)
+    u, v = z[..., 0:1], z[..., 1:2]
+    n_rps = c[..., 0:1] * (1.0 / (2.0 * math.pi))
+    delta = c[..., 1:3]                          # (..., 2): port, starboard
+    thrust = unit_thrust(u, v, n_rps, delta, params)
+    fx = thrust * xp.cos(delta)
+    fy = thrust * xp.sin(delta)
+    side = fy[..., 0] + fy[..., 1]
+    return xp.stack([fx[..., 0] + fx[..., 1], side, -params.prop_lz * side,
+                     params.prop_lx * side + params.prop_ly * (fx[..., 0] - fx[..., 1])],
+                    axis=-1)
+
+
+def wind(z, c, params: VesselParams):
+    """Isherwood (1972) wind load from the true wind in ``c`` and ground velocity in ``z``."""
+    return wind_force(z, c, params)
+
+
+@dataclass(frozen=True)
+class Term:
+    """A registered force term: its function, the DOFs it acts on and what it models."""
+
+    name: str
+    fn: Callable
+    dofs: tuple[str, ...]
+    category: str          # rigid_body | restoring | damping | propulsion | environment
+    velocity: str          # which u, v it needs: 'water' (through water) or 'ground'
+    description: str
+
+
+TERMS: dict[str, Term] = {t.name: t for t in (
+    Term('rigid_body_coriolis', rigid_body_coriolis, DOFS, 'rigid_body', 'water',
+         'rigid-body Coriolis/centripetal -C_RB(nu) nu'),
+    Term('restoring', restoring, ('K',), 'restoring', 'water',
+         'hydrostatic roll moment with cubic GZ term'),
+    Term('restoring_linear', restoring_linear, ('K',), 'restoring', 'water',
+         'linearized hydrostatic roll moment -G eta'),
+    Term('hull_damping', hull_damping, DOFS, 'damping', 'water',
+         'nonlinear hull damping and cross-flow (Blanke & Christensen 1993)'),
+    Term('propulsion', propulsion, DOFS, 'propulsion', 'water',
+         'twin rudder-propellers (thrust vectoring)'),
+    Term('wind', wind, DOFS, 'environment', 'ground',
+         'Isherwood (1972) wind load, K = h Y'),
+)}
+
+SIMULATOR_TERMS = ('rigid_body_coriolis', 'restoring', 'hull_damping', 'propulsion', 'wind')
+MIN_TERMS = ('rigid_body_coriolis', 'restoring_linear')
+PRO_TERMS = MIN_TERMS + ('propulsion',)
+
+
+def total_force(names: Iterable[str], z, c, params: VesselParams, z_ground=None):
+    """Sum the named terms; ``z_ground`` (default ``z``) feeds terms that need ground speed."""
+    total = None
+    for name in names:
+        try:
+            term = TERMS[name]
+        except KeyError:
+            raise KeyError(f'unknown force term {name!r}; known: {sorted(TERMS)}') from None
+        zz = z_ground if (term.velocity == 'ground' and z_ground is not None) else z
+        tau = term.fn(zz, c, params)
+        total = tau if total is None else total + tau
+    if total is None:
+        xp = namespace(z)
+        return xp.zeros_like(z[..., :4])
+    return total
+
+
+def roll_natural_frequency(params: VesselParams) -> float:
+    """Uncoupled roll natural frequency sqrt(rho g nabla GM / (Ixx - Kp')) (rad/s)."""
+    return math.sqrt(params.restoring_roll / (params.Ixx - params.Kpdot))
+
+
+__all__ = ['DOFS', 'HULL_DAMPING_FEATURES', 'MIN_TERMS', 'PRO_TERMS', 'SIMULATOR_TERMS',
+           'TERMS', 'Term', 'hull_damping', 'hull_damping_features', 'hull_damping_matrix',
+           'propulsion', 'restoring', 'restoring_linear', 'rigid_body_coriolis',
+           'roll_natural_frequency', 'total_force', 'unit_thrust', 'wind']

@@ -1,0 +1,101 @@
+"""Configuration: defaults, and one clear line for every bad key or value."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from vessel_physics.config import ConfigError, defaults, load_config, load_hook
+from vessel_physics.params import config_dir, load_named_vessel, load_vessel, params_from_dict
+
+
+def error_of(source) -> str:
+    with pytest.raises(ConfigError) as info:
+        load_config(source)
+    message = str(info.value)
+    assert '\n' not in message, message
+    return message
+
+
+def test_default_file_spells_out_every_default():
+    data = yaml.safe_load((config_dir() / 'simulation.yaml').read_text())
+    assert data == defaults()
+    assert load_config() == load_config({})
+
+
+@pytest.mark.parametrize('source, words', [
+    ({'wavs': {}}, ['wavs', "did you mean 'waves'"]),
+    ({'waves': {'hs': [1, 2]}}, ['waves.hs', "did you mean 'hs_m'"]),
+    ({'noise': {'std': {'rr': 0.1}}}, ['noise.std.rr', "did you mean 'r'"]),
+    ({'dt': 0.5}, ['dt', '0 < value <= 0.1 (s)', '0.5']),
+    ({'dt': 0.07}, ['dt', 'whole steps']),
+    ({'waves': {'hs_m': [3, 1]}}, ['waves.hs_m', '[lo, hi]', '0 <= lo <= hi <= 15 (m)']),
+    ({'waves': {'components': 2.5}}, ['waves.components', 'an integer']),
+    ({'wind': {'force_scale': True}}, ['wind.force_scale', 'a number']),
+    ({'wind': {'enabled': 'yes'}}, ['wind.enabled', 'true or false']),
+    ({'operator': {'shaft_speed_rpm': [366, 5000]}}, ['operator.shaft_speed_rpm', '1000 (rpm)']),
+    ({'wind': 3}, ['wind', 'expected a mapping']),
+    ({'vessel': 'no_such_vessel'}, ['vessel', 'no_such_vessel.yaml']),
+    ({'extra_forces': 'nodots'}, ['extra_forces', "'module:function'"]),
+    ({'extra_forces': 'no_such_module_xyz:f'}, ['extra_forces', 'cannot import',
+                                                 'no_such_module_xyz']),
+    ({'extra_forces': 'math:no_such_function'}, ['extra_forces', 'no callable']),
+])
+def test_invalid_config_is_one_clear_line(source, words):
+    message = error_of(source)
+    for word in words:
+        assert word in message, message
+
+
+def test_bad_yaml_files(tmp_path):
+    missing = error_of(tmp_path / 'missing.yaml')
+    assert 'missing.yaml' in missing and 'cannot read' in missing
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('dt: [1, 2\n')
+    assert 'not valid YAML' in error_of(bad)
+    listy = tmp_path / 'list.yaml'
+    listy.write_text('- 1\n- 2\n')
+    assert 'expected a mapping' in error_of(listy)
+
+
+def test_user_file_overrides_and_finds_vessel_beside_it(tmp_path):
+    (tmp_path / 'my_vessel.yaml').write_text(
+        (config_dir() / 'patrol_vessel.yaml').read_text().replace('GM: 1.1 ', 'GM: 1.2 '))
+    cfg_file = tmp_path / 'sim.yaml'
+    cfg_file.write_text('vessel: my_vessel.yaml\nwaves:\n  hs_m: [1.0, 1.5]\n')
+    cfg = load_config(cfg_file)
+    assert cfg.vessel.GM == 1.2
+    assert cfg.waves.hs_m == (1.0, 1.5)
+    assert cfg.waves.gamma == 3.3                       # untouched default
+    assert cfg.to_dict()['waves']['hs_m'] == [1.0, 1.5]
+
+
+def test_hook_loader_returns_the_callable():
+    import math
+    assert load_hook('math:cos') is math.cos
+
+
+def test_vessels_load_and_differ_where_the_paper_says():
+    true, nominal = load_named_vessel('patrol_vessel'), load_named_vessel('nominal_vessel')
+    differ = {k for k in true.__dataclass_fields__
+              if getattr(true, k) != getattr(nominal, k)}
+    assert differ == {'name', 'rho', 'm', 'displacement', 'GM', 'Ixx', 'Izz', 'Yvdot', 'Kpdot',
+                      'Nrdot', 'Xvr', 'Kphiphiphi'}
+
+
+def test_vessel_file_errors_are_one_line(tmp_path):
+    good = yaml.safe_load((config_dir() / 'patrol_vessel.yaml').read_text())
+    cases = [
+        ({**good, 'Xuu': 1.0}, "did you mean 'Xauu'"),
+        ({k: v for k, v in good.items() if k != 'Kp'}, "missing parameters ['Kp']"),
+        ({**good, 'Ixx': '2.3763e6'}, 'write 1.0e+6'),
+        ({**good, 'm': 500000.0}, 'rho * displacement'),
+        ({**good, 'B': -1.0}, 'B: must be > 0'),
+        ({**good, 'wake_fraction': 1.5}, 'wake_fraction'),
+    ]
+    for data, words in cases:
+        with pytest.raises(ConfigError) as info:
+            params_from_dict(data)
+        assert words in str(info.value) and '\n' not in str(info.value)
+    with pytest.raises(ConfigError, match='cannot read vessel file'):
+        load_vessel(Path(tmp_path) / 'nope.yaml')

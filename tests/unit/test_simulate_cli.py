@@ -1,0 +1,84 @@
+"""offline/simulate.py end to end on a tiny dataset, and its one-line errors."""
+
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from vessel_datasets.format import REQUIRED_COLUMNS, read_dataset
+
+ROOT = Path(__file__).resolve().parents[2]
+SCRIPT = ROOT / 'offline' / 'simulate.py'
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, str(SCRIPT), *map(str, args)], capture_output=True,
+                          text=True, timeout=120)
+
+
+def test_tiny_dataset_end_to_end(tmp_path):
+    out = tmp_path / 'ds'
+    result = run_cli('--runs', 3, '--hours', 5 / 60, '--seed', 4, '--out', out, '--chunk', 2)
+    assert result.returncode == 0, result.stderr
+    summary = json.loads(result.stdout)
+    assert summary['runs'] == 3 and summary['samples_per_run'] == 301
+    ds = read_dataset(out)
+    assert ds.run_ids() == ['run_000', 'run_001', 'run_002']
+    assert {len(ds.run_ids(s)) for s in ('train', 'val', 'test')} == {1}
+    table = ds.load('run_001')
+    assert len(table) == 301
+    for column in REQUIRED_COLUMNS + ('u_true', 'phi_true', 'psi_true', 'x_true', 'y_true'):
+        assert column in table.columns
+    np.testing.assert_array_equal(table['t'].to_numpy(), np.arange(301.0))
+    assert table[['x_true', 'y_true']].iloc[0].tolist() == [0.0, 0.0]
+    assert (table['n'] > 30).all()                              # rad/s, not rpm
+    prov = ds.manifest['provenance']
+    assert prov['seed'] == 4 and prov['config']['vessel']['name'] == 'patrol_vessel'
+    assert set(prov['versions']) >= {'numpy', 'scipy', 'python'}
+    assert ds.manifest['runs'][1]['source']['run_index'] == 1
+    assert ds.manifest['columns']['psi_true']['unit'] == 'rad'
+    assert ds.manifest['columns']['x_true']['unit'] == 'm'
+
+
+def test_chunking_does_not_change_the_runs(tmp_path):
+    from importlib import util
+    spec = util.spec_from_file_location('simulate_cli', SCRIPT)
+    cli = util.module_from_spec(spec)
+    spec.loader.exec_module(cli)
+    a, b = tmp_path / 'a', tmp_path / 'b'
+    assert cli.main(['--runs', '2', '--hours', '0.01', '--out', str(a), '--quiet',
+                     '--chunk', '1']) == 0
+    assert cli.main(['--runs', '2', '--hours', '0.01', '--out', str(b), '--quiet']) == 0
+    for run in ('run_000', 'run_001'):
+        ta, tb = read_dataset(a).load(run), read_dataset(b).load(run)
+        np.testing.assert_allclose(ta.to_numpy(), tb.to_numpy(), rtol=1e-12, atol=1e-12)
+
+
+@pytest.mark.parametrize('args, words, code', [
+    (['--runs', '0'], 'must be >= 1', 2),
+    (['--hours', '-1'], 'must be a number > 0', 2),
+    (['--config', 'nope.yaml'], 'cannot read config', 1),
+])
+def test_bad_input_is_one_clear_line(tmp_path, args, words, code):
+    result = run_cli(*args, '--out', tmp_path / 'x', '--quiet')
+    assert result.returncode == code
+    errors = [line for line in result.stderr.splitlines() if 'error:' in line]
+    assert len(errors) == 1 and words in errors[0], result.stderr
+
+
+def test_refuses_to_overwrite_without_flag(tmp_path):
+    out = tmp_path / 'ds'
+    assert run_cli('--runs', 1, '--hours', 0.005, '--out', out, '--quiet').returncode == 0
+    again = run_cli('--runs', 1, '--hours', 0.005, '--out', out, '--quiet')
+    assert again.returncode == 1 and 'already holds a dataset' in again.stderr
+    assert again.stderr.count('\n') == 1
+    assert run_cli('--runs', 1, '--hours', 0.005, '--out', out, '--quiet',
+                   '--overwrite').returncode == 0
+
+
+def test_help():
+    result = run_cli('--help')
+    assert result.returncode == 0 and '--runs' in result.stdout and '--seed' in result.stdout
