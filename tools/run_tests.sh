@@ -6,8 +6,8 @@ set -uo pipefail
 echo '== ruff (pycodestyle, pyflakes, imports, pep257, naming, quotes)'
 ruff check . || exit 1
 echo '== ament_pep257 on the ROS packages'
-ament_pep257 ros2_ws/src >/tmp/ament_pep257.$$ 2>&1 || { cat /tmp/ament_pep257.$$; exit 1; }
-tail -n 1 /tmp/ament_pep257.$$; rm -f /tmp/ament_pep257.$$
+report="$(ament_pep257 ros2_ws/src 2>&1)" || { grep -v '^checking ' <<<"$report"; exit 1; }
+tail -n 1 <<<"$report"
 [ "${1:-}" = "--lint-only" ] && exit 0
 
 # A DDS domain of its own for this test session, so parallel sessions never cross.

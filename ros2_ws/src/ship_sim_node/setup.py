@@ -20,5 +20,5 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='ROS 2 node running the patrol-vessel simulator.',
     license='Apache-2.0',
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': ['simulator = ship_sim_node.node:main']},
 )

@@ -1,0 +1,1 @@
+"""Conversions between vessel arrays and ROS messages, shared by the vessel nodes."""

@@ -1,0 +1,40 @@
+"""Run a node until SIGINT/SIGTERM, the same way for every vessel node."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+import sys
+
+import rclpy
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.executors import ExternalShutdownException
+
+
+def run_node(make_node: Callable, program: str, expected_errors: tuple = (),
+             args=None) -> int:
+    """
+    Create a node with ``make_node()``, spin it, and shut down cleanly; return an exit code.
+
+    Set-up errors of the kinds in ``expected_errors`` (and invalid parameter values) end
+    the program with one line ``PROGRAM: error: ...`` and exit code 2. A signal that
+    lands while a callback is publishing makes that publish fail on the already shut
+    down context; such an error is part of stopping, not a fault, and exits 0.
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = make_node()
+        rclpy.spin(node)
+    except (InvalidParameterValueException, *expected_errors) as exc:
+        print(f'{program}: error: {exc}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except Exception:
+        if rclpy.ok():
+            raise
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
