@@ -1,0 +1,153 @@
+#!/usr/bin/env python3
+"""
+Convert rosbag2 recordings (MCAP, also damaged ones) into a training dataset.
+
+Reads rosbag2 directories, bare .mcap files, several, or folders of them; needs no ROS
+installation. Fields are picked by a topic map (YAML; default: the simulator's topics),
+converted from the ROS frames (ENU/FLU) to the model's (NED/FRD), resampled to a fixed
+rate and split into runs wherever a topic has a gap. NaN, duplicate and out-of-order
+samples are dropped and counted; what damaged files lost is reported line by line.
+Writes docs/conventions.md's dataset format; the manifest records the source files
+with their SHA-256, the topic map, rate, gaps, split and drop counts.
+
+Exit status: 0 when a dataset was written (warnings go to stderr), 1 when nothing
+usable remained, 2 on a usage error.
+
+examples:
+  bag_to_dataset.py rosbag2_2024_05_01/ --out data/trial1
+  bag_to_dataset.py recordings/ --out data/fleet --topic-map my_vessel.yaml --jobs 2
+"""
+
+import argparse
+from pathlib import Path
+import shutil
+import sys
+
+from tqdm import tqdm
+
+from vessel_datasets import format as fmt
+from vessel_datasets.bag_source import BagError
+from vessel_datasets.convert import BagResult, Options, convert_bags, write
+from vessel_datasets.topic_map import TopicMapError, load_topic_map
+
+EXIT_OK, EXIT_NOTHING, EXIT_USAGE = 0, 1, 2
+
+
+def parse_args(argv):
+    """Parse the command line; defaults come from the package's config/convert.yaml."""
+    defaults = Options.from_yaml()
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('bags', nargs='+', metavar='BAG',
+                        help='rosbag2 directory, .mcap file, or a folder of them')
+    parser.add_argument('--out', required=True, metavar='DATASET',
+                        help='dataset directory to write')
+    parser.add_argument('--topic-map', metavar='YAML',
+                        help='which topic/field gives each quantity (default: simulator)')
+    parser.add_argument('--rate', type=float, dest='rate_hz', metavar='HZ',
+                        help=f'sampling rate of the dataset (default {defaults.rate_hz})')
+    parser.add_argument('--time-source', choices=('header', 'log'),
+                        help=f'header stamps or log (receive) times '
+                             f'(default {defaults.time_source})')
+    parser.add_argument('--max-gap', type=float, dest='max_gap_s', metavar='S',
+                        help=f'split runs where a topic is silent longer than this '
+                             f'(default {defaults.max_gap_s} s)')
+    parser.add_argument('--min-run', type=float, dest='min_run_s', metavar='S',
+                        help=f'drop runs shorter than this (default {defaults.min_run_s} s)')
+    parser.add_argument('--seed', type=int, help=f'split seed (default {defaults.seed})')
+    parser.add_argument('--split', metavar='TRAIN,VAL,TEST',
+                        help='fractions of runs per split (default '
+                             + ','.join(f'{f:g}' for f in defaults.split) + ')')
+    parser.add_argument('--jobs', type=int, default=1, metavar='N',
+                        help='convert N bags at a time in separate processes (default 1)')
+    parser.add_argument('--overwrite', action='store_true',
+                        help='replace an existing dataset in --out')
+    parser.add_argument('--quiet', action='store_true', help='no progress bar')
+    args = parser.parse_args(argv)
+    split = None
+    if args.split:
+        try:
+            split = tuple(float(x) for x in args.split.split(','))
+        except ValueError:
+            parser.error(f'--split wants three numbers like 0.6,0.1,0.3, got {args.split!r}')
+    try:
+        opts = Options.from_yaml(rate_hz=args.rate_hz, time_source=args.time_source,
+                                 max_gap_s=args.max_gap_s, min_run_s=args.min_run_s,
+                                 seed=args.seed, split=split)
+        opts.check()
+        fmt.split_runs([], opts.seed, opts.split)  # validates the fractions
+    except (ValueError, fmt.DatasetError) as exc:
+        parser.error(str(exc))
+    return args, opts
+
+
+def main(argv=None) -> int:
+    """Convert, write, report; return the exit status."""
+    args, opts = parse_args(argv)
+    out = Path(args.out)
+    try:
+        topic_map = load_topic_map(args.topic_map)
+    except TopicMapError as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    if (out / fmt.MANIFEST).exists() or (out / fmt.RUNS_DIR).exists():
+        if not args.overwrite:
+            print(f'error: {out} already holds a dataset; use --overwrite to replace it',
+                  file=sys.stderr)
+            return EXIT_USAGE
+        shutil.rmtree(out / fmt.RUNS_DIR, ignore_errors=True)
+        (out / fmt.MANIFEST).unlink(missing_ok=True)
+
+    bar = tqdm(unit='msg', unit_scale=True, desc='reading', file=sys.stderr,
+               disable=True if args.quiet else None,  # None: only on a terminal
+               mininterval=0.5)
+    try:
+        results = convert_bags(args.bags, topic_map, opts, jobs=args.jobs,
+                               progress=bar.update, on_result=lambda r: _announce(r, bar))
+    except BagError as exc:
+        bar.close()
+        print(f'error: {exc}', file=sys.stderr)
+        return EXIT_NOTHING
+    bar.close()
+
+    if not any(r.runs for r in results):
+        print('error: nothing usable remained; no dataset written', file=sys.stderr)
+        return EXIT_NOTHING
+    manifest = write(out, results, topic_map, opts, argv=sys.argv if argv is None else argv)
+    _summary(results, manifest)
+    return EXIT_OK
+
+
+def _announce(result: BagResult, bar) -> None:
+    """Print one finished bag's notes, losses and problems above the progress bar."""
+    for line in result.report.get('notes', []):
+        bar.write(f'note: {line}', file=sys.stderr)
+    for line in result.report.get('losses', []):
+        bar.write(f'lost: {line}', file=sys.stderr)
+    if result.error:
+        bar.write(f'error: {result.error}', file=sys.stderr)
+
+
+def _summary(results, manifest) -> None:
+    """Print what was converted: runs, gaps and drops per bag, then the dataset path."""
+    for r in results:
+        rep = r.report
+        if r.error:
+            print(f'{r.name}: skipped', file=sys.stderr)
+            continue
+        dropped = {k: sum(t['dropped'][k] for t in rep['topics'].values())
+                   for k in ('nan', 'duplicate', 'out_of_order')}
+        samples = sum(x['samples'] for x in rep['runs'])
+        print(f'{r.name}: {rep["messages_read"]} messages -> {len(r.runs)} run(s), '
+              f'{samples} samples; {len(rep["gaps"])} gap(s), {len(rep["short_runs"])} short '
+              f'run(s) dropped; dropped samples: {dropped["nan"]} NaN, '
+              f'{dropped["duplicate"]} duplicate, {dropped["out_of_order"]} out of order',
+              file=sys.stderr)
+        for gap in rep['gaps']:
+            print(f'  gap on {gap["topic"]}: {gap["start"]} to {gap["end"]} '
+                  f'({gap["duration_s"]:.1f} s)', file=sys.stderr)
+    print(manifest)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
