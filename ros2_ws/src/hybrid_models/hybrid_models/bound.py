@@ -1,0 +1,61 @@
+"""
+The interpretability constraint: a bound on the LSTM's residual output.
+
+Baier et al. define the relative threshold T as the ratio between the SIZE of the
+LSTM's output interval and the size of the physical model's expected output range:
+a physical range [-5, 5] with the LSTM limited to [-1, 1] is T = 20 %. So the LSTM
+output of state i lies in [-b_i, b_i] with
+
+    b_i = T * R_i / 2,   R_i = q97.5(z_phy_i) - q2.5(z_phy_i),
+
+where R_i, "the 95 % range", is the spread between the 2.5th and 97.5th percentiles
+of the physical model's ONE-STEP outputs (teacher-forced from measured states) over
+the training and validation runs, in the state's own unit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+
+BOUND_MODES = ('tanh', 'clamp')
+PERCENTILES = (2.5, 97.5)
+
+
+def output_range(z_phy: np.ndarray) -> np.ndarray:
+    """Per-state 95 % range R_i = q97.5 - q2.5 of one-step outputs z_phy (N, n_state)."""
+    lo, hi = np.percentile(np.asarray(z_phy, dtype=np.float64), PERCENTILES, axis=0)
+    return hi - lo
+
+
+def half_width(relative_threshold: float | None, out_range: np.ndarray) -> np.ndarray:
+    """Bound b_i = T R_i / 2 (inf everywhere when T is None: unconstrained)."""
+    if relative_threshold is None:
+        return np.full(np.shape(out_range), math.inf)
+    if relative_threshold <= 0:
+        raise ValueError(f'relative threshold must be > 0, got {relative_threshold}')
+    return relative_threshold * np.asarray(out_range, dtype=np.float64) / 2.0
+
+
+def apply_bound(x: torch.Tensor, bound: torch.Tensor, mode: str = 'tanh') -> torch.Tensor:
+    """
+    Limit x to [-bound, bound] per last-axis channel; infinite bounds pass x through.
+
+    'tanh' is smooth, b tanh(x / b): slope 1 near zero, so small corrections pass
+    almost unchanged and gradients never vanish abruptly; |output| <= b holds exactly in
+    floating point because |tanh| <= 1. 'clamp' is the hard limit (zero gradient
+    outside).
+    """
+    finite = torch.isfinite(bound)
+    if not bool(finite.any()):
+        return x
+    safe = torch.where(finite, bound, torch.ones_like(bound))
+    if mode == 'tanh':
+        limited = safe * torch.tanh(x / safe)
+    elif mode == 'clamp':
+        limited = torch.maximum(torch.minimum(x, safe), -safe)
+    else:
+        raise ValueError(f'unknown bound mode {mode!r}; use {BOUND_MODES}')
+    return torch.where(finite, limited, x)

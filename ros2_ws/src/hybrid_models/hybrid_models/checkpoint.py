@@ -1,0 +1,146 @@
+"""
+Checkpoints: one safetensors file holding the weights and a JSON description.
+
+Layout: tensors ``model/<state_dict key>`` (and, for resumable training files,
+``optim/<param index>/<key>``); the safetensors header metadata carries
+``format = hybrid-models-checkpoint/1`` and ``config``, a JSON document with the model
+kind and architecture, normalization, output range and bound, physics description
+and parameter YAML, dataset hash, training config and metrics. The header is plain
+JSON after an 8-byte length, so other languages (e.g. a JAX exporter) read it
+directly.
+
+Loading never unpickles: the header is parsed and checked before any tensor is
+read, and anything that is not our format is refused with one ``CheckpointError``
+line.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import json
+import os
+from pathlib import Path
+import struct
+
+from safetensors import SafetensorError
+from safetensors.torch import load_file, save_file
+import torch
+from torch import nn
+
+from hybrid_models.models import build_model
+from hybrid_models.vehicle import VehicleSpec
+
+FORMAT = 'hybrid-models-checkpoint/1'
+# A header larger than this is not one of ours (ours are a few hundred kB at most).
+MAX_HEADER_BYTES = 64 * 1024 * 1024
+
+
+class CheckpointError(ValueError):
+    """A file is not a readable hybrid_models checkpoint."""
+
+
+@dataclass
+class Checkpoint:
+    """The parts of a checkpoint file."""
+
+    config: dict
+    model_state: dict[str, torch.Tensor]
+    optim_state: dict[str, torch.Tensor] = field(default_factory=dict)
+
+
+def save_checkpoint(path: str | Path, model: nn.Module, config: dict,
+                    optimizer: torch.optim.Optimizer | None = None) -> Path:
+    """Write atomically (temporary file, then rename), so a kill never leaves half a file."""
+    path = Path(path)
+    tensors = {f'model/{k}': v.detach().contiguous().clone()
+               for k, v in model.state_dict().items()}
+    config = dict(config)
+    if optimizer is not None:
+        opt = optimizer.state_dict()
+        scalars = {}
+        for idx, state in opt['state'].items():
+            for key, value in state.items():
+                if isinstance(value, torch.Tensor):
+                    tensors[f'optim/{idx}/{key}'] = value.detach().contiguous().clone()
+                else:
+                    scalars[f'{idx}/{key}'] = value
+        config['optimizer'] = {'param_groups': opt['param_groups'], 'scalars': scalars}
+    meta = {'format': FORMAT, 'config': json.dumps(config, default=_json_default)}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + '.tmp')
+    save_file(tensors, str(tmp), metadata=meta)
+    os.replace(tmp, path)
+    return path
+
+
+def _json_default(value):
+    if hasattr(value, 'tolist'):
+        return value.tolist()
+    if isinstance(value, (Path, tuple)):
+        return str(value) if isinstance(value, Path) else list(value)
+    raise TypeError(f'cannot store {type(value).__name__} in a checkpoint config')
+
+
+def read_header(path: str | Path) -> dict:
+    """Read the checkpoint's JSON config from the header alone; refuse foreign files."""
+    path = Path(path)
+    not_ours = f'{path}: not a hybrid_models checkpoint'
+    try:
+        with open(path, 'rb') as f:
+            raw_len = f.read(8)
+            if len(raw_len) < 8:
+                raise CheckpointError(f'{not_ours} (too short)')
+            (n,) = struct.unpack('<Q', raw_len)
+            if n > min(MAX_HEADER_BYTES, path.stat().st_size - 8):
+                raise CheckpointError(f'{not_ours} (no safetensors header)')
+            header = json.loads(f.read(n).decode('utf-8'))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise CheckpointError(f'{not_ours} ({type(exc).__name__})') from None
+    meta = header.get('__metadata__') if isinstance(header, dict) else None
+    if not isinstance(meta, dict) or meta.get('format') != FORMAT:
+        raise CheckpointError(f'{not_ours} (format is not {FORMAT})')
+    try:
+        return json.loads(meta['config'])
+    except (KeyError, TypeError, json.JSONDecodeError):
+        raise CheckpointError(f'{path}: damaged hybrid_models checkpoint (config)') from None
+
+
+def load_checkpoint(path: str | Path) -> Checkpoint:
+    """Read config and tensors of a checkpoint."""
+    config = read_header(path)
+    try:
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError) as exc:
+        raise CheckpointError(f'{path}: damaged hybrid_models checkpoint ({exc})') from None
+    model_state = {k[6:]: v for k, v in tensors.items() if k.startswith('model/')}
+    optim_state = {k[6:]: v for k, v in tensors.items() if k.startswith('optim/')}
+    return Checkpoint(config, model_state, optim_state)
+
+
+def restore_optimizer(optimizer: torch.optim.Optimizer, ckpt: Checkpoint) -> None:
+    """Load the optimizer state saved by ``save_checkpoint``."""
+    saved = ckpt.config.get('optimizer')
+    if saved is None:
+        raise CheckpointError('checkpoint holds no optimizer state')
+    state: dict[int, dict] = {}
+    for key, value in ckpt.optim_state.items():
+        idx, name = key.split('/', 1)
+        state.setdefault(int(idx), {})[name] = value
+    for key, value in saved['scalars'].items():
+        idx, name = key.split('/', 1)
+        state.setdefault(int(idx), {})[name] = value
+    optimizer.load_state_dict({'state': state, 'param_groups': saved['param_groups']})
+
+
+def load_model(path: str | Path) -> tuple[nn.Module, dict]:
+    """Rebuild a trained model from its checkpoint; returns (model in eval mode, config)."""
+    ckpt = load_checkpoint(path)
+    try:
+        spec = VehicleSpec.from_dict(ckpt.config['vehicle'])
+        model = build_model(ckpt.config['model'], spec)
+        model.load_state_dict(ckpt.model_state)
+    except (KeyError, TypeError, ValueError, RuntimeError) as exc:
+        raise CheckpointError(f'{path}: checkpoint does not match its model '
+                              f'({type(exc).__name__}: {exc})'.splitlines()[0]) from None
+    model.eval()
+    return model, ckpt.config

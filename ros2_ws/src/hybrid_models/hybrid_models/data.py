@@ -1,0 +1,144 @@
+"""
+Runs as arrays, and the forecast windows cut from them.
+
+Indexing used everywhere in this package (one sample period per index):
+
+- a forecast starts at index ``t0``; its initialization window is ``z[t0-W:t0]`` and
+  ``c[t0-W:t0]`` (W = window, e.g. 60 samples);
+- it predicts ``z[t0:t0+H]`` (H = horizon), step k from ``z[t0+k-1]`` (the last
+  window sample for k = 0) and the control held over that step, ``c[t0+k-1]``;
+- so the forecast's controls are ``c[t0-1:t0-1+H]``: the control applied over the
+  sample period that ends at each predicted sample.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import hashlib
+from pathlib import Path
+
+import numpy as np
+
+from hybrid_models.vehicle import VehicleSpec
+from vessel_datasets.format import Dataset, read_dataset
+
+
+@dataclass
+class RunArrays:
+    """One run: measured states, controls and (if simulated) noise-free states."""
+
+    run_id: str
+    z: np.ndarray        # (T, n_state) measured, model units
+    c: np.ndarray        # (T, n_control)
+    z_true: np.ndarray   # (T, n_state) noise-free where the dataset has it, else = z
+
+    @property
+    def length(self) -> int:
+        """Return the number of samples."""
+        return len(self.z)
+
+
+@dataclass
+class Windows:
+    """A batch of forecast problems cut from runs (see the module docstring)."""
+
+    z_window: np.ndarray   # (B, W, n_state)
+    c_window: np.ndarray   # (B, W, n_control)
+    c_future: np.ndarray   # (B, H, n_control), c[t0-1:t0-1+H]
+    z_target: np.ndarray   # (B, H, n_state), z[t0:t0+H] (measured or true)
+    run_index: np.ndarray  # (B,) index into the run list
+    t0: np.ndarray         # (B,) first predicted index
+
+    def __len__(self) -> int:
+        return len(self.t0)
+
+    def subset(self, idx) -> Windows:
+        """Rows ``idx`` of every field."""
+        return Windows(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+
+def load_runs(dataset: Dataset | str | Path, split: str, spec: VehicleSpec) -> list[RunArrays]:
+    """Load every run of ``split`` as float32 arrays in the vehicle's vector order."""
+    ds = dataset if isinstance(dataset, Dataset) else read_dataset(dataset)
+    runs = []
+    for run_id, table in ds.load_split(split).items():
+        z = table[list(spec.state_names)].to_numpy(np.float32)
+        true_cols = [s + '_true' for s in spec.state_names]
+        has_true = all(col in table.columns for col in true_cols)
+        z_true = table[true_cols].to_numpy(np.float32) if has_true else z.copy()
+        c = table[list(spec.control_names)].to_numpy(np.float32)
+        runs.append(RunArrays(run_id, z, c, z_true))
+    if not runs:
+        raise ValueError(f'dataset {ds.root} has no runs in split {split!r}')
+    return runs
+
+
+def dataset_hash(path: str | Path) -> str:
+    """SHA-256 over the manifest and every run file (identifies the training data)."""
+    ds = read_dataset(path)
+    digest = hashlib.sha256((ds.root / 'manifest.json').read_bytes())
+    for entry in sorted(ds.manifest['runs'], key=lambda r: r['id']):
+        digest.update((ds.root / entry['file']).read_bytes())
+    return digest.hexdigest()
+
+
+def forecast_starts(length: int, window: int, horizon: int, stride: int,
+                    offset: int = 0) -> np.ndarray:
+    """First predicted indices t0 = window + offset + k*stride with t0 + horizon <= length."""
+    last = length - horizon
+    first = window + offset
+    if last < first:
+        return np.zeros(0, dtype=np.int64)
+    return np.arange(first, last + 1, stride, dtype=np.int64)
+
+
+def cut_windows(runs: list[RunArrays], starts: list[np.ndarray], window: int, horizon: int,
+                target: str = 'measured') -> Windows:
+    """Gather forecast problems at ``starts[i]`` of run ``i``; target 'measured' or 'true'."""
+    if target not in ('measured', 'true'):
+        raise ValueError(f"target must be 'measured' or 'true', got {target!r}")
+    zw, cw, cf, zt, ri, t0s = [], [], [], [], [], []
+    back = np.arange(-window, 0)
+    ahead = np.arange(horizon)
+    for i, (run, t0) in enumerate(zip(runs, starts, strict=True)):
+        if len(t0) == 0:
+            continue
+        w_idx = t0[:, None] + back
+        f_idx = t0[:, None] + ahead
+        zw.append(run.z[w_idx])
+        cw.append(run.c[w_idx])
+        cf.append(run.c[f_idx - 1])
+        zt.append((run.z_true if target == 'true' else run.z)[f_idx])
+        ri.append(np.full(len(t0), i))
+        t0s.append(t0)
+    if not zw:
+        raise ValueError(f'no run is long enough for window {window} + horizon {horizon}')
+    return Windows(np.concatenate(zw), np.concatenate(cw), np.concatenate(cf),
+                   np.concatenate(zt), np.concatenate(ri), np.concatenate(t0s))
+
+
+def forecast_windows(runs: list[RunArrays], window: int, horizon: int, stride: int,
+                     target: str = 'measured') -> Windows:
+    """Cut evaluation forecasts: one every ``stride`` samples across each run."""
+    starts = [forecast_starts(r.length, window, horizon, stride) for r in runs]
+    return cut_windows(runs, starts, window, horizon, target)
+
+
+def tiling_windows(runs: list[RunArrays], window: int, length: int, offset: int) -> Windows:
+    """
+    Training sequences whose predicted spans tile each run from ``window + offset``.
+
+    Predicted spans ``[t0, t0+length)`` are back to back, so one epoch predicts every
+    sample once except the first ``offset`` after the window and a tail shorter than
+    ``length``; drawing ``offset`` afresh each epoch covers all of ``[window, T)``.
+    """
+    starts = [forecast_starts(r.length, window, length, length, offset) for r in runs]
+    return cut_windows(runs, starts, window, length, 'measured')
+
+
+def one_step_pairs(runs: list[RunArrays]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """All (z_t, c_t, z_{t+1}) pairs of measured data, stacked over runs."""
+    z = np.concatenate([r.z[:-1] for r in runs])
+    c = np.concatenate([r.c[:-1] for r in runs])
+    z_next = np.concatenate([r.z[1:] for r in runs])
+    return z, c, z_next

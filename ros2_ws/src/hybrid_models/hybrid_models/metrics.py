@@ -1,0 +1,97 @@
+"""
+Forecast metrics: per-state RMSE and the trajectory error of Baier et al.
+
+Trajectory (ship): heading and position are integrated from the origin with heading 0
+for predicted and true states alike, forward Euler at the sample period dt:
+
+    psi_k = dt * sum_{j<k} r_j
+    x_k = dt * sum_{j<=k} (u_j cos psi_j - v_j cos phi_j sin psi_j)
+    y_k = dt * sum_{j<=k} (u_j sin psi_j + v_j cos phi_j cos psi_j)
+
+The error at step k is the Euclidean distance between predicted and true (x_k, y_k).
+The reported mean runs over all steps and forecasts; its 95 % confidence interval is
+1.96 * std / sqrt(n) with std and n over the per-forecast mean errors (forecasts, not
+steps, are the sampling units; overlapping forecasts are still correlated, so read the
+interval as a lower bound on the uncertainty).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from hybrid_models.vehicle import VehicleSpec
+
+Z95 = 1.959963984540054
+
+
+def ship_positions(z: np.ndarray, spec: VehicleSpec) -> np.ndarray:
+    """Planar positions (..., H, 2) in m from states (..., H, n_state), see module doc."""
+    dt = spec.dt
+    u, v, r, phi = (z[..., spec.state_index(n)] for n in ('u', 'v', 'r', 'phi'))
+    psi = dt * (np.cumsum(r, axis=-1) - r)
+    x_dot = u * np.cos(psi) - v * np.cos(phi) * np.sin(psi)
+    y_dot = u * np.sin(psi) + v * np.cos(phi) * np.cos(psi)
+    return dt * np.stack([np.cumsum(x_dot, axis=-1), np.cumsum(y_dot, axis=-1)], axis=-1)
+
+
+# Position kinematics per vehicle (by VehicleSpec.name); a quadcopter adds its own.
+POSITIONS: dict[str, Callable[[np.ndarray, VehicleSpec], np.ndarray]] = {
+    'ship': ship_positions,
+}
+
+
+def trajectory_errors(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec) -> np.ndarray:
+    """Distance (B, H) in m between predicted and true positions at every step."""
+    positions = POSITIONS[spec.name]
+    with np.errstate(invalid='ignore', over='ignore'):
+        return np.linalg.norm(positions(pred, spec) - positions(true, spec), axis=-1)
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
+                     minute: int = 60) -> dict:
+    """
+    Every number of one model's forecasts (B, H, n_state) against the truth.
+
+    Non-finite forecasts (a diverged model) give ``diverged: true`` and None values.
+    """
+    pred = np.asarray(pred, dtype=np.float64)
+    true = np.asarray(true, dtype=np.float64)
+    with np.errstate(invalid='ignore', over='ignore'):
+        sq = (pred - true) ** 2
+        rmse = np.sqrt(sq.reshape(-1, spec.n_state).mean(axis=0))
+    diverged = not np.isfinite(pred).all()
+    err = trajectory_errors(pred, true, spec)
+    per_forecast = err.mean(axis=1)
+    n = len(per_forecast)
+    std = float(per_forecast.std(ddof=1)) if n > 1 else float('nan')
+    steps = err.shape[1] // minute * minute
+    per_minute = err[:, :steps].reshape(n, -1, minute).mean(axis=2) if steps else None
+    return {
+        'diverged': bool(diverged),
+        'rmse': {s: _finite(rmse[i]) for i, s in enumerate(spec.state_names)},
+        'trajectory': {
+            'mean': _finite(err.mean()),
+            'std': _finite(std),
+            'n': n,
+            'ci95': _finite(Z95 * std / np.sqrt(n)) if n > 1 else None,
+            'final_mean': _finite(err[:, -1].mean()),
+            'per_minute_mean': None if per_minute is None else [
+                _finite(x) for x in per_minute.mean(axis=0)],
+        },
+        'n_forecasts': n,
+        'horizon': int(pred.shape[1]),
+    }
+
+
+def normalized_rmse_sum(pred: np.ndarray, true: np.ndarray, state_std: np.ndarray) -> float:
+    """Sum over states of RMSE / std (the model-selection score; inf if diverged)."""
+    with np.errstate(invalid='ignore', over='ignore'):
+        rmse = np.sqrt(((pred - true) ** 2).reshape(-1, pred.shape[-1]).mean(axis=0))
+    total = float((rmse / state_std).sum())
+    return total if np.isfinite(total) else float('inf')

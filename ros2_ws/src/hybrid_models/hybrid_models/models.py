@@ -1,0 +1,49 @@
+"""Build any forecaster from its JSON description, and run it on windows."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from hybrid_models.data import Windows
+from hybrid_models.nets import HybridModel, LSTMBaseline, as_tensor
+from hybrid_models.physical import build_physical
+from hybrid_models.qlag import QLag
+from hybrid_models.vehicle import VehicleSpec
+
+MODEL_KINDS = ('qlag', 'lstm', 'hybrid')
+
+
+def build_model(cfg: dict, spec: VehicleSpec) -> nn.Module:
+    """Build an untrained model of the described kind and architecture."""
+    kind = cfg.get('kind')
+    if kind == 'qlag':
+        return QLag(spec, lag=int(cfg.get('lag', 4)), ridge=float(cfg.get('ridge', 1e-8)))
+    if kind == 'lstm':
+        return LSTMBaseline(spec, int(cfg.get('hidden', 64)), int(cfg.get('layers', 2)),
+                            float(cfg.get('dropout', 0.25)))
+    if kind == 'hybrid':
+        model = HybridModel(spec, build_physical(cfg['physical'], spec),
+                            int(cfg.get('hidden', 64)), int(cfg.get('layers', 2)),
+                            float(cfg.get('dropout', 0.25)), cfg.get('bound_mode', 'tanh'),
+                            bool(cfg.get('bound_in_training', False)))
+        model.relative_threshold = cfg.get('relative_threshold')
+        return model
+    raise ValueError(f'unknown model kind {kind!r}; use one of {MODEL_KINDS}')
+
+
+@torch.no_grad()
+def predict(model: nn.Module, windows: Windows, batch_size: int = 1024) -> np.ndarray:
+    """Forecasts (B, H, n_state) for every window, in evaluation mode."""
+    was_training = model.training
+    model.eval()
+    out = []
+    try:
+        for i in range(0, len(windows), batch_size):
+            w = windows.subset(slice(i, i + batch_size))
+            out.append(model.forecast(as_tensor(w.z_window), as_tensor(w.c_window),
+                                      as_tensor(w.c_future)).numpy())
+    finally:
+        model.train(was_training)
+    return np.concatenate(out)

@@ -1,0 +1,192 @@
+"""
+Recurrent forecasters: the LSTM baseline and the hybrid residual model.
+
+Both use ``torch.nn.LSTM`` (gate order i, f, g, o; ``batch_first``) and an
+initializer LSTM after Mohajerin & Waslander (2019): it reads the initialization
+window of normalized states and controls, and its final (h, c) of every layer is the
+predictor LSTM's initial state (same layers and hidden size, so no mapping is needed).
+
+Normalization (buffers, fitted on training data): x_n = (x - mean) / std for states
+and controls; the network's output y becomes a state (LSTM) or a residual (hybrid) as
+y * std, with the state std or the std of the physical model's one-step residual.
+
+Every model offers ``forecast(z_window, c_window, c_future)`` with the indexing of
+``hybrid_models.data``: windows (B, W, .), controls c[t0-1:t0-1+H] (B, H, n_control),
+returning the states z[t0:t0+H] (B, H, n_state) in physical units.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from torch import nn
+
+from hybrid_models.bound import apply_bound, half_width
+from hybrid_models.normalization import Normalizer
+from hybrid_models.physical import PhysicalModel
+from hybrid_models.vehicle import VehicleSpec
+
+
+class _Normalized(nn.Module):
+    """Holds the normalization buffers shared by the recurrent models."""
+
+    def __init__(self, spec: VehicleSpec):
+        super().__init__()
+        self.spec = spec
+        for name, dim in (('state', spec.n_state), ('control', spec.n_control)):
+            self.register_buffer(f'{name}_mean', torch.zeros(dim))
+            self.register_buffer(f'{name}_std', torch.ones(dim))
+
+    def set_normalization(self, state: Normalizer, control: Normalizer) -> None:
+        """Copy fitted statistics into the buffers."""
+        for name, norm in (('state', state), ('control', control)):
+            getattr(self, f'{name}_mean').copy_(torch.as_tensor(norm.mean))
+            getattr(self, f'{name}_std').copy_(torch.as_tensor(norm.std))
+
+    def nz(self, z: torch.Tensor) -> torch.Tensor:
+        """Normalize a state."""
+        return (z - self.state_mean) / self.state_std
+
+    def nc(self, c: torch.Tensor) -> torch.Tensor:
+        """Normalize a control."""
+        return (c - self.control_mean) / self.control_std
+
+    def initial_state(self, init: nn.LSTM, z_window: torch.Tensor, c_window: torch.Tensor):
+        """(h, c) of the initializer after the window, each (layers, B, hidden)."""
+        _, hc = init(torch.cat([self.nz(z_window), self.nc(c_window)], dim=-1))
+        return hc
+
+
+def _lstm(n_in: int, hidden: int, layers: int, dropout: float) -> nn.LSTM:
+    # nn.LSTM only applies dropout between stacked layers.
+    return nn.LSTM(n_in, hidden, layers, batch_first=True,
+                   dropout=dropout if layers > 1 else 0.0)
+
+
+class LSTMBaseline(_Normalized):
+    """
+    Stacked LSTM with an LSTM initializer (Mohajerin & Waslander 2019).
+
+    The predictor sees only the controls; its output is the normalized state.
+    """
+
+    kind = 'lstm'
+
+    def __init__(self, spec: VehicleSpec, hidden: int = 64, layers: int = 2,
+                 dropout: float = 0.25):
+        super().__init__(spec)
+        self.hidden, self.layers, self.dropout = hidden, layers, dropout
+        self.init = _lstm(spec.n_state + spec.n_control, hidden, layers, dropout)
+        self.lstm = _lstm(spec.n_control, hidden, layers, dropout)
+        self.head = nn.Linear(hidden, spec.n_state)
+
+    def forecast(self, z_window: torch.Tensor, c_window: torch.Tensor,
+                 c_future: torch.Tensor) -> torch.Tensor:
+        """States over the horizon; no feedback, so one fused LSTM call."""
+        hc = self.initial_state(self.init, z_window, c_window)
+        y, _ = self.lstm(self.nc(c_future), hc)
+        return self.head(y) * self.state_std + self.state_mean
+
+    def describe(self) -> dict:
+        """Architecture (``build_model`` input)."""
+        return {'kind': self.kind, 'hidden': self.hidden, 'layers': self.layers,
+                'dropout': self.dropout}
+
+
+class HybridModel(_Normalized):
+    """
+    Residual hybrid of Baier et al.: z_{t+1} = z_phy_{t+1} + bound(LSTM residual).
+
+    Per step: z_phy = physical(z_t, c_t); the predictor LSTM reads the normalized
+    (c_t, z_phy) and its linear head gives the residual; the residual is limited to
+    [-b, b] per state (``hybrid_models.bound``) and added. During multistep
+    prediction the sum is fed back as the next z_t.
+    """
+
+    kind = 'hybrid'
+
+    def __init__(self, spec: VehicleSpec, physical: PhysicalModel, hidden: int = 64,
+                 layers: int = 2, dropout: float = 0.25, bound_mode: str = 'tanh',
+                 bound_in_training: bool = False):
+        super().__init__(spec)
+        self.physical = physical
+        self.hidden, self.layers, self.dropout = hidden, layers, dropout
+        self.bound_mode, self.bound_in_training = bound_mode, bool(bound_in_training)
+        self.init = _lstm(spec.n_state + spec.n_control, hidden, layers, dropout)
+        self.lstm = _lstm(spec.n_control + spec.n_state, hidden, layers, dropout)
+        self.head = nn.Linear(hidden, spec.n_state)
+        self.register_buffer('residual_std', torch.ones(spec.n_state))
+        # The physical model's 95 % output range R_i and the bound b_i = T R_i / 2.
+        self.register_buffer('output_range', torch.full((spec.n_state,), math.nan))
+        self.register_buffer('bound', torch.full((spec.n_state,), math.inf))
+        self.relative_threshold: float | None = None
+
+    def set_threshold(self, relative_threshold: float | None) -> None:
+        """Constrain the residual to T * R / 2 per state (None: unconstrained)."""
+        if relative_threshold is not None and not torch.isfinite(self.output_range).all():
+            raise ValueError('output_range is not set; compute it before a threshold')
+        b = half_width(relative_threshold, self.output_range.double().numpy())
+        self.bound.copy_(torch.as_tensor(b, dtype=self.bound.dtype))
+        self.relative_threshold = relative_threshold
+
+    def residual(self, y: torch.Tensor) -> torch.Tensor:
+        """Head output -> residual in state units, bounded unless training unconstrained."""
+        res = self.head(y) * self.residual_std
+        if self.training and not self.bound_in_training:
+            return res
+        return apply_bound(res, self.bound, self.bound_mode)
+
+    def step(self, z: torch.Tensor, c: torch.Tensor, hc):
+        """One sample period: returns (z_next, z_phy, residual, hc)."""
+        z_phy = self.physical(z, c)
+        x = torch.cat([self.nc(c), self.nz(z_phy)], dim=-1).unsqueeze(1)
+        y, hc = self.lstm(x, hc)
+        res = self.residual(y[:, 0])
+        return z_phy + res, z_phy, res, hc
+
+    def forecast(self, z_window: torch.Tensor, c_window: torch.Tensor,
+                 c_future: torch.Tensor, return_parts: bool = False):
+        """Multistep prediction with feedback; ``return_parts`` adds (z_phy, residual)."""
+        hc = self.initial_state(self.init, z_window, c_window)
+        z = z_window[:, -1]
+        zs, phys, ress = [], [], []
+        for k in range(c_future.shape[1]):
+            z, z_phy, res, hc = self.step(z, c_future[:, k], hc)
+            zs.append(z)
+            phys.append(z_phy)
+            ress.append(res)
+        out = torch.stack(zs, dim=1)
+        if return_parts:
+            return out, torch.stack(phys, dim=1), torch.stack(ress, dim=1)
+        return out
+
+    def teacher_forced(self, z_window: torch.Tensor, c_window: torch.Tensor,
+                       c_future: torch.Tensor, z_phy: torch.Tensor) -> torch.Tensor:
+        """
+        Residuals (B, L, n_state) given the physical one-step outputs from TRUE states.
+
+        Phase 1 of the two-phase training: z_phy does not depend on the network, so
+        the whole sequence is one fused LSTM call.
+        """
+        hc = self.initial_state(self.init, z_window, c_window)
+        y, _ = self.lstm(torch.cat([self.nc(c_future), self.nz(z_phy)], dim=-1), hc)
+        return self.residual(y)
+
+    def describe(self) -> dict:
+        """Architecture and constraint (``build_model`` input)."""
+        return {'kind': self.kind, 'hidden': self.hidden, 'layers': self.layers,
+                'dropout': self.dropout, 'physical': self.physical.describe(),
+                'bound_mode': self.bound_mode, 'bound_in_training': self.bound_in_training,
+                'relative_threshold': self.relative_threshold}
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Trainable parameters."""
+    return int(sum(p.numel() for p in model.parameters() if p.requires_grad))
+
+
+def as_tensor(x: np.ndarray | torch.Tensor) -> torch.Tensor:
+    """float32 tensor view of an array."""
+    return torch.as_tensor(x, dtype=torch.float32)

@@ -1,0 +1,50 @@
+"""
+Physical models: first-principles (Min, Pro), regression (Lin, Hyd, Qua), combinations.
+
+``build_physical({'kind': 'pro+lin', ...}, spec)`` makes any of them; kinds are written
+like the paper's names in lower case: 'min', 'pro', 'lin', 'hyd', 'qua', 'min+lin', ...
+"""
+
+from __future__ import annotations
+
+from hybrid_models.physical.base import PhysicalModel
+from hybrid_models.physical.composite import CompositeModel
+from hybrid_models.physical.regression import RegressionModel
+from hybrid_models.vehicle import VehicleSpec
+
+REGRESSION_KINDS = ('lin', 'hyd', 'qua')
+FIRST_PRINCIPLES_KINDS = ('min', 'pro')
+
+__all__ = ['PhysicalModel', 'CompositeModel', 'RegressionModel', 'build_physical',
+           'REGRESSION_KINDS', 'FIRST_PRINCIPLES_KINDS']
+
+
+def build_physical(cfg: dict, spec: VehicleSpec) -> PhysicalModel:
+    """
+    Construct (unfitted) the physical model a config names.
+
+    Keys: ``kind``; for regressions ``ridge`` (relative, default 1e-8) and ``masks``
+    ('coupled' or 'diagonal', Hyd only); for first principles ``params`` (YAML path,
+    default the nominal vessel), ``vessel`` (parameter values, as stored in checkpoints;
+    they win over ``params``) and ``substeps`` (RK4 sub-steps per sample period).
+    """
+    kind = str(cfg.get('kind', '')).lower()
+    parts = kind.split('+')
+    fp_kind = parts[0] if parts[0] in FIRST_PRINCIPLES_KINDS else None
+    reg_kinds = parts[1:] if fp_kind else parts
+    if len(reg_kinds) > 1 or (reg_kinds and reg_kinds[0] not in REGRESSION_KINDS) or (
+            not fp_kind and not reg_kinds):
+        raise ValueError(f'unknown physical model {kind!r}; use one of '
+                         f'{FIRST_PRINCIPLES_KINDS + REGRESSION_KINDS} or first+regression, '
+                         f"e.g. 'min+lin'")
+    regression = None
+    if reg_kinds:
+        regression = RegressionModel(spec, reg_kinds[0], ridge=cfg.get('ridge', 1e-8),
+                                     masks=cfg.get('masks', 'coupled'))
+    if fp_kind is None:
+        return regression
+    # Imported here so that regression-only models work without the vessel physics.
+    from hybrid_models.physical.first_principles import build_first_principles
+    fp = build_first_principles(fp_kind, spec, params=cfg.get('params'),
+                                substeps=int(cfg.get('substeps', 4)), vessel=cfg.get('vessel'))
+    return fp if regression is None else CompositeModel(fp, regression)

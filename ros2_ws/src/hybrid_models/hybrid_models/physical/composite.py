@@ -1,0 +1,41 @@
+"""First-principles model plus a regression fitted on its one-step residual."""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from hybrid_models.physical.base import PhysicalModel
+from hybrid_models.physical.regression import RegressionModel
+
+
+class CompositeModel(PhysicalModel):
+    """
+    z_phy = FirstPrinciples(z, c) + Regression(z, c) (Baier et al., eq. 1).
+
+    The regression is fitted in closed form on the first-principles ONE-STEP residual
+    z_{t+1} - FirstPrinciples(z_t, c_t) (their eq. 5).
+    """
+
+    def __init__(self, first_principles: PhysicalModel, regression: RegressionModel):
+        super().__init__(first_principles.spec)
+        self.first_principles = first_principles
+        self.regression = regression
+        self.kind = f'{first_principles.kind}+{regression.kind}'
+
+    def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        """Sum of both components."""
+        return self.first_principles(z, c) + self.regression(z, c)
+
+    def fit(self, z: np.ndarray, c: np.ndarray, z_next: np.ndarray) -> CompositeModel:
+        """Fit the regression on the first-principles residual."""
+        self.first_principles.fit(z, c, z_next)
+        residual = z_next - self.first_principles.predict(z, c)
+        self.regression.fit(z, c, residual)
+        return self
+
+    def describe(self) -> dict:
+        """Return the construction arguments of both parts."""
+        fp = self.first_principles.describe()
+        reg = self.regression.describe()
+        return {**fp, **{k: v for k, v in reg.items() if k != 'kind'}, 'kind': self.kind}

@@ -1,0 +1,120 @@
+"""
+Named feature maps for the regression components, with per-state masks.
+
+Every feature has a name; a regression row (one output state) uses the features its
+mask names. Masks are defined by NAME, never by column position, so prepending
+controls or adding features cannot shift them (a defect of the authors' library).
+
+- ``lin``: controls and states (Baier et al. eq. "Lin": z' = Q c + P z + b).
+- ``qua``: ``lin`` plus the square of every control and state (the quadcopter "Qua").
+- ``hyd``: ``lin`` plus the nonlinear hull terms of Blanke & Christensen (1993) as
+  used for the patrol vessel by Perez, Ross & Fossen (2006), written out in
+  ``BLANKE_TERMS``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from array_api_compat import array_namespace
+import torch
+
+from hybrid_models.vehicle import VehicleSpec
+
+Term = Callable[[dict], torch.Tensor]
+
+# Nonlinear hull-force terms of the 4-DOF patrol-vessel model (Blanke & Christensen
+# 1993; Perez, Ross & Fossen 2006). Name -> formula in the states u, v, p, r, phi.
+BLANKE_TERMS: dict[str, Term] = {
+    'u|u|': lambda s: s['u'] * abs(s['u']),
+    'v*r': lambda s: s['v'] * s['r'],
+    'r*r': lambda s: s['r'] * s['r'],
+    'p*r': lambda s: s['p'] * s['r'],
+    '|u|v': lambda s: abs(s['u']) * s['v'],
+    'u*r': lambda s: s['u'] * s['r'],
+    'v|v|': lambda s: s['v'] * abs(s['v']),
+    'v|r|': lambda s: s['v'] * abs(s['r']),
+    'r|v|': lambda s: s['r'] * abs(s['v']),
+    'phi|uv|': lambda s: s['phi'] * abs(s['u'] * s['v']),
+    'phi|ur|': lambda s: s['phi'] * abs(s['u'] * s['r']),
+    'phi*u*u': lambda s: s['phi'] * s['u'] * s['u'],
+    '|u|p': lambda s: abs(s['u']) * s['p'],
+    'p|p|': lambda s: s['p'] * abs(s['p']),
+    'phi^3': lambda s: s['phi'] ** 3,
+    '|u|r': lambda s: abs(s['u']) * s['r'],
+    'r|r|': lambda s: s['r'] * abs(s['r']),
+    'phi*u|r|': lambda s: s['phi'] * s['u'] * abs(s['r']),
+    'phi*u|u|': lambda s: s['phi'] * s['u'] * abs(s['u']),
+}
+
+# Which terms appear in which generalized force (same sources). X holds the hull drag
+# and the Coriolis/centripetal products m(v r + xG r^2 - zG p r).
+DOF_TERMS: dict[str, tuple[str, ...]] = {
+    'X': ('u|u|', 'v*r', 'r*r', 'p*r'),
+    'Y': ('|u|v', 'u*r', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phi*u*u'),
+    'K': ('|u|v', 'u*r', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phi*u*u',
+          '|u|p', 'p|p|', 'phi^3'),
+    'N': ('|u|v', 'u*r', 'r|v|', 'phi|uv|', '|u|r', 'r|r|', 'phi*u|r|', 'phi*u|u|'),
+}
+
+# Forces acting on each state over one sample period. 'diagonal' reads Blanke's
+# equations literally (one force per acceleration, phi' = p has none). 'coupled'
+# respects the mass matrix: its sway/roll/yaw block is full, so v', p', r' each see
+# Y, K and N; and phi integrates p over the 1 s period, so it sees them too.
+MASK_MODES: dict[str, dict[str, tuple[str, ...]]] = {
+    'diagonal': {'u': ('X',), 'v': ('Y',), 'p': ('K',), 'r': ('N',), 'phi': ()},
+    'coupled': {'u': ('X',), 'v': ('Y', 'K', 'N'), 'p': ('Y', 'K', 'N'),
+                'r': ('Y', 'K', 'N'), 'phi': ('Y', 'K', 'N')},
+}
+
+
+class FeatureMap:
+    """Maps (z, c) to named features (B, F); ``masks[state]`` lists the features it uses."""
+
+    def __init__(self, spec: VehicleSpec, kind: str = 'lin', masks: str = 'coupled'):
+        if kind not in ('lin', 'qua', 'hyd'):
+            raise ValueError(f"unknown feature map {kind!r}; use 'lin', 'qua' or 'hyd'")
+        self.spec, self.kind, self.mask_mode = spec, kind, masks
+        linear = list(spec.control_names) + list(spec.state_names)
+        self.names: tuple[str, ...]
+        if kind == 'lin':
+            self.names = tuple(linear)
+        elif kind == 'qua':
+            self.names = tuple(linear + [f'{n}^2' for n in linear])
+        else:
+            missing = {'u', 'v', 'p', 'r', 'phi'} - set(spec.state_names)
+            if missing:
+                raise ValueError(f'Blanke features need ship states; {spec.name} lacks '
+                                 f'{sorted(missing)}')
+            if masks not in MASK_MODES:
+                raise ValueError(f'unknown mask mode {masks!r}; use {sorted(MASK_MODES)}')
+            self.names = tuple(linear + list(BLANKE_TERMS))
+        self.masks = {s: self._mask_names(s, linear) for s in spec.state_names}
+
+    def _mask_names(self, state: str, linear: list[str]) -> tuple[str, ...]:
+        if self.kind != 'hyd':
+            return self.names
+        terms = {t for dof in MASK_MODES[self.mask_mode][state] for t in DOF_TERMS[dof]}
+        # Keep the canonical order of BLANKE_TERMS; every row keeps all linear terms.
+        return tuple(linear + [t for t in BLANKE_TERMS if t in terms])
+
+    def mask_matrix(self) -> torch.Tensor:
+        """Boolean (n_state, F): row i marks the features of state i."""
+        rows = [[n in set(self.masks[s]) for n in self.names] for s in self.spec.state_names]
+        return torch.tensor(rows, dtype=torch.bool)
+
+    def array_features(self, z, c):
+        """Features (..., F) in the order of ``names``, on any Array API arrays."""
+        xp = array_namespace(z, c)
+        linear = xp.concat([c, z], axis=-1)
+        if self.kind == 'lin':
+            return linear
+        if self.kind == 'qua':
+            return xp.concat([linear, linear * linear], axis=-1)
+        s = {name: z[..., i] for i, name in enumerate(self.spec.state_names)}
+        blanke = xp.stack([f(s) for f in BLANKE_TERMS.values()], axis=-1)
+        return xp.concat([linear, blanke], axis=-1)
+
+    def __call__(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        """Features (B, F) in the order of ``names`` (torch tensors)."""
+        return self.array_features(z, c)

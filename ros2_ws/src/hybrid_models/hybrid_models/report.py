@@ -1,0 +1,142 @@
+"""Human-readable results: the Table-2 style Markdown table and PNG figures."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from hybrid_models.metrics import POSITIONS, trajectory_errors  # noqa: E402
+from hybrid_models.vehicle import VehicleSpec  # noqa: E402
+
+# Decimals per unit, as in the paper's table.
+DECIMALS = {'m/s': 3, 'rad/s': 4, 'rad': 4}
+
+
+def _fmt(x, decimals: int) -> str:
+    return '–' if x is None else f'{x:.{decimals}f}'
+
+
+def trajectory_cell(traj: dict) -> str:
+    """'mean ± ci' in m, rounded like the paper (whole metres above 100 m)."""
+    mean, ci = traj.get('mean'), traj.get('ci95')
+    if mean is None:
+        return 'diverged'
+    d = 0 if mean >= 100 else 1 if mean >= 10 else 2
+    return f'{mean:.{d}f} ± {_fmt(ci, d)}'
+
+
+def markdown_table(rows: list[dict], spec: VehicleSpec) -> str:
+    """Rows of {'label', 'metrics'}: per-state RMSE and the trajectory error."""
+    units = zip(spec.state_names, spec.state_units, strict=True)
+    head = ['model'] + [f'{s} [{u}]' for s, u in units]
+    head.append('trajectory, mean ± CI95 [m]')
+    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    for row in rows:
+        m = row['metrics']
+        if m['diverged'] and m['trajectory']['mean'] is None:
+            cells = ['diverged'] * spec.n_state + ['diverged']
+        else:
+            cells = [_fmt(m['rmse'][s], DECIMALS.get(u, 4))
+                     for s, u in zip(spec.state_names, spec.state_units, strict=True)]
+            cells.append(trajectory_cell(m['trajectory']))
+        lines.append('| ' + ' | '.join([row['label']] + cells) + ' |')
+    return '\n'.join(lines) + '\n'
+
+
+def plot_states(path: Path, spec: VehicleSpec, true: np.ndarray, preds: dict[str, np.ndarray],
+                title: str) -> None:
+    """One forecast: each state over time, truth and every model."""
+    t = np.arange(1, len(true) + 1) * spec.dt
+    fig, axes = plt.subplots(spec.n_state, 1, figsize=(9, 2.0 * spec.n_state), sharex=True)
+    for i, ax in enumerate(axes):
+        ax.plot(t, true[:, i], 'k', lw=1.5, label='true')
+        for label, pred in preds.items():
+            ax.plot(t, pred[:, i], lw=1, label=label)
+        ax.set_ylabel(f'{spec.state_names[i]} [{spec.state_units[i]}]')
+        ax.grid(alpha=0.3)
+    axes[0].set_title(title)
+    axes[0].legend(fontsize=7, ncol=4, loc='upper right')
+    axes[-1].set_xlabel('time since forecast start [s]')
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_trajectories(path: Path, spec: VehicleSpec, true: np.ndarray,
+                      preds: dict[str, np.ndarray], title: str) -> None:
+    """One forecast's integrated paths from the origin (x north/forward, y east)."""
+    positions = POSITIONS[spec.name]
+    fig, ax = plt.subplots(figsize=(6, 6))
+    p = positions(true, spec)
+    ax.plot(p[:, 1], p[:, 0], 'k', lw=2, label='true')
+    for label, pred in preds.items():
+        with np.errstate(all='ignore'):
+            q = positions(pred, spec)
+        if np.isfinite(q).all():
+            ax.plot(q[:, 1], q[:, 0], lw=1, label=label)
+    ax.set_xlabel('y [m]')
+    ax.set_ylabel('x [m]')
+    ax.set_aspect('equal', adjustable='datalim')
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    ax.set_title(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_error_per_minute(path: Path, spec: VehicleSpec, true: np.ndarray,
+                          preds: dict[str, np.ndarray], minute: int = 60) -> None:
+    """Boxplots of each forecast's mean trajectory error within each minute."""
+    fig, ax = plt.subplots(figsize=(10, 4))
+    n_models = len(preds)
+    width = 0.8 / max(n_models, 1)
+    for j, (label, pred) in enumerate(preds.items()):
+        err = trajectory_errors(pred, true, spec)
+        steps = err.shape[1] // minute * minute
+        per_min = err[:, :steps].reshape(len(err), -1, minute).mean(axis=2)
+        per_min = np.where(np.isfinite(per_min), per_min, np.nan)
+        pos = np.arange(per_min.shape[1]) + 1 + (j - (n_models - 1) / 2) * width
+        bp = ax.boxplot([c[np.isfinite(c)] for c in per_min.T], positions=pos,
+                        widths=width * 0.9, showfliers=False, patch_artist=True,
+                        medianprops={'color': 'k'})
+        for box in bp['boxes']:
+            box.set_facecolor(f'C{j}')
+            box.set_alpha(0.6)
+        ax.plot([], [], color=f'C{j}', lw=6, alpha=0.6, label=label)
+    ax.set_xlabel('minute of the forecast')
+    ax.set_ylabel('trajectory error [m]')
+    minutes = np.arange(1, true.shape[1] // minute + 1)
+    ax.set_xticks(minutes, labels=[str(m) for m in minutes])
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_threshold(path: Path, spec: VehicleSpec, sweep: list[dict], label: str) -> None:
+    """Per-state RMSE against the relative threshold; dashed: unconstrained."""
+    free = next(r for r in sweep if r['relative_threshold'] is None)
+    rows = [r for r in sweep if r['relative_threshold'] is not None]
+    ts = [100 * r['relative_threshold'] for r in rows]
+    fig, axes = plt.subplots(1, spec.n_state, figsize=(3.2 * spec.n_state, 3))
+    for ax, s, u in zip(axes, spec.state_names, spec.state_units, strict=True):
+        vals = [np.nan if r['rmse'][s] is None else r['rmse'][s] for r in rows]
+        ax.plot(ts, vals, 'o-', color='C1', label='constrained')
+        if free['rmse'][s] is not None:
+            ax.axhline(free['rmse'][s], color='C0', ls='--', label='unconstrained')
+        ax.set_xscale('log')
+        ax.set_xlabel('relative threshold [%]')
+        ax.set_title(f'{s} RMSE [{u}]')
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.suptitle(label)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

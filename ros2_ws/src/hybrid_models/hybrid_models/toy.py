@@ -1,0 +1,87 @@
+"""
+A tiny synthetic vessel-like dataset for tests and smoke runs (not a ship model).
+
+Five states and six controls with the ship's names and roughly its magnitudes: surge
+follows shaft speed, the rudders turn and sway the hull, roll is a lightly damped
+oscillator excited by sway and a sinusoidal "wave". It exists so that the learning
+layer can be exercised in seconds without the vessel simulator.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hybrid_models.vehicle import SHIP
+from vessel_datasets.format import write_dataset
+
+SUBSTEPS = 10
+
+
+def _rates(x: np.ndarray, c: np.ndarray, wave: float) -> np.ndarray:
+    u, v, p, r, phi = x
+    n, dp, ds, ws, wc, wsn = c
+    delta = 0.5 * (dp + ds)
+    return np.array([
+        0.08 * (0.08 * n - u) - 0.002 * u * abs(u) - 0.002 * ws * wc,
+        -0.3 * v + 0.4 * u * delta + 0.01 * ws * wsn + 0.2 * u * r,
+        -0.22 * p - 1.21 * phi + 0.05 * v + wave,
+        -0.4 * r - 0.08 * u * delta - 0.02 * v * abs(v),
+        p,
+    ])
+
+
+def _controls(rng: np.random.Generator, n: int) -> np.ndarray:
+    def steps(lo, hi, hold):
+        k = int(np.ceil(n / hold)) + 1
+        levels = rng.uniform(lo, hi, k)
+        return np.repeat(levels, hold)[:n]
+    shaft = np.convolve(steps(60.0, 100.0, 120), np.ones(20) / 20, mode='same')
+    rudder = np.clip(steps(-0.05, 0.05, 45), -0.05, 0.05)
+    wind = 2.0 + 0.5 * np.sin(np.arange(n) / 200 + rng.uniform(0, 6))
+    angle = rng.uniform(-np.pi, np.pi) + 0.2 * np.sin(np.arange(n) / 300)
+    return np.stack([shaft, rudder, rudder, wind, np.cos(angle), np.sin(angle)], axis=1)
+
+
+def simulate_toy_run(rng: np.random.Generator, n_samples: int, noise: float = 0.02
+                     ) -> pd.DataFrame:
+    """One run as a dataset table (1 Hz), with noisy states and ``_true`` columns."""
+    c = _controls(rng, n_samples)
+    x = np.array([0.08 * c[0, 0], 0.0, 0.0, 0.0, 0.0])
+    wave_amp, wave_w = rng.uniform(0.005, 0.02), rng.uniform(0.5, 0.9)
+    states = np.empty((n_samples, 5))
+    h = 1.0 / SUBSTEPS
+    for t in range(n_samples):
+        states[t] = x
+        for k in range(SUBSTEPS):
+            tau = t + k * h
+            wave = [wave_amp * np.sin(wave_w * (tau + d)) for d in (0, h / 2, h)]
+            k1 = _rates(x, c[t], wave[0])
+            k2 = _rates(x + h / 2 * k1, c[t], wave[1])
+            k3 = _rates(x + h / 2 * k2, c[t], wave[1])
+            k4 = _rates(x + h * k3, c[t], wave[2])
+            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    scale = np.array([1.0, 0.3, 0.01, 0.005, 0.01])
+    measured = states + noise * scale * rng.standard_normal(states.shape)
+    table = {'t': np.arange(n_samples, dtype=float)}
+    for i, name in enumerate(SHIP.state_names):
+        table[name] = measured[:, i]
+        table[name + '_true'] = states[:, i]
+    psi = np.cumsum(states[:, 3])
+    table.update({'psi': psi, 'x': np.cumsum(states[:, 0] * np.cos(psi)),
+                  'y': np.cumsum(states[:, 0] * np.sin(psi))})
+    for i, name in enumerate(SHIP.control_names):
+        table[name] = c[:, i]
+    return pd.DataFrame(table)
+
+
+def write_toy_dataset(out_dir: str | Path, n_runs: int = 10, n_samples: int = 600,
+                      seed: int = 0) -> Path:
+    """Write a toy dataset directory; returns its path."""
+    rng = np.random.default_rng(seed)
+    runs = {f'toy_{i:03d}': simulate_toy_run(rng, n_samples) for i in range(n_runs)}
+    write_dataset(out_dir, runs, rate_hz=1.0, seed=seed,
+                  provenance={'tool': 'hybrid_models.toy', 'seed': seed})
+    return Path(out_dir)

@@ -1,0 +1,130 @@
+"""
+Training configurations: YAML files merged over documented defaults.
+
+A config names the dataset, the model (kind, architecture, physical model,
+constraint), the training phases and the evaluation protocol. Unknown keys are
+errors, so a typo never silently falls back to a default.
+"""
+
+from __future__ import annotations
+
+import copy
+from pathlib import Path
+
+import yaml
+
+DEFAULTS: dict = {
+    'name': 'unnamed',
+    'dataset': None,            # dataset directory (vessel_datasets format)
+    'vehicle': 'ship',
+    'model': {
+        'kind': 'hybrid',       # qlag | lstm | hybrid
+        'hidden': 64,
+        'layers': 2,
+        'dropout': 0.25,
+        'physical': {'kind': 'lin'},
+        'bound_mode': 'tanh',   # tanh | clamp (hybrid.bound)
+        'bound_in_training': False,
+        'relative_threshold': None,   # e.g. 0.15; None: unconstrained
+        'lags': [1, 2, 4, 8],   # QLag: candidate lags, chosen on validation
+        'lag': 4,
+        'ridge': 1.0e-8,
+    },
+    'training': {
+        'seed': 0,
+        'threads': 2,
+        'window': 60,           # initialization window (samples)
+        'sequence_length': 50,  # predicted samples per training sequence (BPTT length)
+        'batch_size': 256,
+        'grad_clip': 1.0,       # max global gradient norm
+        'weight_decay': 0.0,
+        'phases': [
+            # teacher: phase 1 of 2P (one-step residual, true states in);
+            # multistep: feedback of predictions (1P uses only this phase).
+            {'kind': 'teacher', 'max_epochs': 20, 'patience': 4, 'lr': 0.0025,
+             'stop_loss': None},
+            {'kind': 'multistep', 'max_epochs': 60, 'patience': 8, 'lr': 0.0025},
+        ],
+        'validation': {'horizon': 900, 'stride': 300},
+        'max_bad_step_fraction': 0.5,  # more skipped (non-finite) steps: roll the epoch back
+        'time_limit_minutes': None,    # stop (keeping the best model) past this budget
+        'progress': True,
+    },
+    'evaluation': {'horizon': 900, 'stride': 120, 'target': 'true',
+                   'thresholds': [0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5]},
+}
+
+PHASE_KEYS = {'kind', 'max_epochs', 'patience', 'lr', 'stop_loss', 'sequence_length'}
+PHASE_KINDS = ('teacher', 'multistep')
+
+
+class ConfigError(ValueError):
+    """A configuration is malformed."""
+
+
+def _merge(base: dict, override: dict, where: str) -> dict:
+    out = copy.deepcopy(base)
+    for key, value in override.items():
+        if key not in base:
+            raise ConfigError(f'unknown config key {where}{key!r}; known: {sorted(base)}')
+        if isinstance(base[key], dict) and key != 'physical':
+            if not isinstance(value, dict):
+                raise ConfigError(f'config key {where}{key!r} must be a mapping')
+            out[key] = _merge(base[key], value, f'{where}{key}.')
+        else:
+            out[key] = copy.deepcopy(value)
+    return out
+
+
+def resolve(cfg: dict) -> dict:
+    """Merge a partial config over the defaults and check it."""
+    out = _merge(DEFAULTS, cfg or {}, '')
+    for i, phase in enumerate(out['training']['phases']):
+        extra = set(phase) - PHASE_KEYS
+        if extra or phase.get('kind') not in PHASE_KINDS:
+            raise ConfigError(f'training.phases[{i}]: kind must be one of {PHASE_KINDS} '
+                              f'and keys among {sorted(PHASE_KEYS)} (got {phase})')
+    kind = out['model']['kind']
+    if kind == 'lstm' and any(p['kind'] == 'teacher' for p in out['training']['phases']):
+        raise ConfigError('the LSTM baseline has no physical model to teacher-force; '
+                          'give it only multistep phases')
+    return out
+
+
+def load_config(path: str | Path, overrides: list[str] | None = None) -> dict:
+    """Read a YAML config, apply dotted overrides ('dataset=DIR', 'model.hidden=128')."""
+    path = Path(path)
+    try:
+        raw = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f'{path}: cannot read config ({exc})') from None
+    if not isinstance(raw, dict):
+        raise ConfigError(f'{path}: a config must be a mapping')
+    raw.setdefault('name', path.stem)
+    return resolve(apply_overrides(raw, overrides or []))
+
+
+def parse_override(text: str) -> tuple[list[str], object]:
+    """
+    'model.physical.kind=min+lin' -> (['model', 'physical', 'kind'], 'min+lin').
+
+    The value is read as YAML, so numbers, null and lists work: 'a.b=0.15', 'a=[1, 2]'.
+    """
+    if '=' not in text:
+        raise ConfigError(f'override {text!r} must look like key.sub=value')
+    key, value = text.split('=', 1)
+    return key.strip().split('.'), yaml.safe_load(value)
+
+
+def apply_overrides(raw: dict, overrides: list[str]) -> dict:
+    """Set dotted keys in a raw (unresolved) config, creating mappings as needed."""
+    raw = copy.deepcopy(raw)
+    for text in overrides:
+        path, value = parse_override(text)
+        node = raw
+        for part in path[:-1]:
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ConfigError(f'override {text!r}: {part!r} is not a mapping')
+        node[path[-1]] = value
+    return raw

@@ -1,0 +1,149 @@
+"""
+Train one model from a resolved config: data, physics fit, statistics, fit loop.
+
+``train(cfg, out_dir)`` writes into ``out_dir``: ``model.safetensors`` (the best
+model by validation multistep error, with every figure of its config), ``best`` and
+``last`` checkpoints, ``log.jsonl`` (one line per epoch) and ``config.yaml``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+import sys
+import time
+
+import numpy as np
+import torch
+import yaml
+
+from hybrid_models.bound import output_range
+from hybrid_models.checkpoint import load_checkpoint, save_checkpoint
+from hybrid_models.data import dataset_hash, forecast_windows, load_runs, one_step_pairs
+from hybrid_models.metrics import normalized_rmse_sum
+from hybrid_models.models import build_model, predict
+from hybrid_models.nets import HybridModel
+from hybrid_models.normalization import Normalizer
+from hybrid_models.physical import CompositeModel, RegressionModel
+from hybrid_models.training.loop import BEST, LAST, LoopState, fit
+from hybrid_models.training.tasks import RecurrentTask
+from hybrid_models.vehicle import SHIP, VehicleSpec
+
+VEHICLES = {'ship': SHIP}
+MODEL_FILE = 'model.safetensors'
+
+
+def vehicle(name: str) -> VehicleSpec:
+    """Return the VehicleSpec a config names."""
+    if name not in VEHICLES:
+        raise ValueError(f'unknown vehicle {name!r}; known: {sorted(VEHICLES)}')
+    return VEHICLES[name]
+
+
+def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
+    """Train the configured model; returns the final checkpoint's config."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    tcfg = cfg['training']
+    torch.set_num_threads(int(tcfg['threads']))
+    torch.manual_seed(tcfg['seed'])
+    if cfg['dataset'] is None:
+        raise ValueError('the config names no dataset (key "dataset" or --dataset)')
+    spec = vehicle(cfg['vehicle'])
+    (out_dir / 'config.yaml').write_text(yaml.safe_dump(cfg, sort_keys=False))
+    t_start = time.monotonic()
+    train_runs = load_runs(cfg['dataset'], 'train', spec)
+    val_runs = load_runs(cfg['dataset'], 'val', spec)
+    base = {'dataset': {'path': str(cfg['dataset']), 'sha256': dataset_hash(cfg['dataset']),
+                        'train_runs': [r.run_id for r in train_runs],
+                        'val_runs': [r.run_id for r in val_runs]},
+            'vehicle': spec.to_dict(), 'training': cfg, 'name': cfg['name']}
+    z, c, _ = one_step_pairs(train_runs)
+    state_norm, control_norm = Normalizer.fit(z), Normalizer.fit(c)
+    base['normalization'] = {'state': state_norm.to_dict(), 'control': control_norm.to_dict()}
+    kind = cfg['model']['kind']
+    if kind == 'qlag':
+        model, extra = _fit_qlag(cfg, spec, train_runs, val_runs, state_norm)
+        summary = {**base, **extra, 'model': model.describe()}
+        save_checkpoint(out_dir / MODEL_FILE, model, summary)
+        return summary
+    model = build_model(cfg['model'], spec)
+    model.set_normalization(state_norm, control_norm)
+    z_phy_train = z_phy_val = None
+    if isinstance(model, HybridModel):
+        z_phy_train, z_phy_val, phys_info = _prepare_physics(model, cfg, train_runs, val_runs)
+        base.update(phys_info)
+    task = RecurrentTask(train_runs, val_runs, tcfg, state_norm.std, z_phy_train, z_phy_val)
+    base['parameters'] = sum(p.numel() for p in model.parameters())
+
+    def checkpoint_config() -> dict:
+        return {**base, 'model': model.describe()}
+
+    resume = resume and (out_dir / LAST).exists()
+    state: LoopState = fit(model, task, tcfg, out_dir, checkpoint_config, resume=resume)
+    best = load_checkpoint(out_dir / BEST if (out_dir / BEST).exists() else out_dir / LAST)
+    model.load_state_dict(best.model_state)
+    summary = {**checkpoint_config(), 'val': best.config.get('val'),
+               'best_epoch': state.best_epoch, 'epochs': state.epoch,
+               'bad_steps': state.bad_steps, 'rollbacks': state.rollbacks,
+               'stop_reason': state.stop_reason,
+               'train_seconds': round(state.elapsed_s, 1),
+               'wall_seconds_this_session': round(time.monotonic() - t_start, 1)}
+    save_checkpoint(out_dir / MODEL_FILE, model, summary)
+    return summary
+
+
+def _fit_qlag(cfg, spec, train_runs, val_runs, state_norm):
+    """Fit QLag for each candidate lag; keep the best on validation multistep error."""
+    tcfg = cfg['training']
+    windows = forecast_windows(val_runs, tcfg['window'], tcfg['validation']['horizon'],
+                               tcfg['validation']['stride'])
+    scores, best = {}, None
+    for lag in cfg['model']['lags']:
+        model = build_model({**cfg['model'], 'lag': lag}, spec).fit(train_runs)
+        score = normalized_rmse_sum(predict(model, windows), windows.z_target, state_norm.std)
+        scores[int(lag)] = score if math.isfinite(score) else None
+        print(f'qlag lag {lag}: val score {score:.4g}', file=sys.stderr)
+        if best is None or score < best[0]:
+            best = (score, model)
+    return best[1], {'val': {'score': best[0]}, 'lag_scores': scores}
+
+
+def _prepare_physics(model: HybridModel, cfg, train_runs, val_runs):
+    """Fit the regression part, compute the output range, residual scale and bound."""
+    physical = model.physical
+    z, c, z_next = one_step_pairs(train_runs)
+    physical.fit(z, c, z_next)
+    z_phy_train = [physical.predict(r.z[:-1], r.c[:-1]) for r in train_runs]
+    z_phy_val = [physical.predict(r.z[:-1], r.c[:-1]) for r in val_runs]
+    one_step = np.concatenate(z_phy_train)
+    residual = z_next - one_step
+    res_norm = Normalizer.fit(residual)
+    model.residual_std.copy_(torch.as_tensor(res_norm.std))
+    # The 95 % range is taken over training AND validation one-step outputs (paper).
+    r95 = output_range(np.concatenate([one_step] + z_phy_val))
+    model.output_range.copy_(torch.as_tensor(r95))
+    model.set_threshold(cfg['model']['relative_threshold'])
+    one_step_rmse = np.sqrt((residual ** 2).mean(axis=0))
+    info = {'physics': _physics_info(physical),
+            'bound': {'definition': 'b_i = T * R_i / 2, R_i = q97.5 - q2.5 of one-step '
+                                    'physical outputs on train+val',
+                      'output_range': r95.tolist(),
+                      'relative_threshold': cfg['model']['relative_threshold'],
+                      'half_width': model.bound.tolist()},
+            'physics_one_step_rmse': dict(zip(model.spec.state_names,
+                                              one_step_rmse.tolist(), strict=True))}
+    return z_phy_train, z_phy_val, info
+
+
+def _physics_info(physical) -> dict:
+    """Human-readable physics: description, fitted coefficients, parameter YAML."""
+    info = {'describe': physical.describe()}
+    parts = [physical] if not isinstance(physical, CompositeModel) else [
+        physical.first_principles, physical.regression]
+    for part in parts:
+        if isinstance(part, RegressionModel):
+            info['regression_coefficients'] = part.coefficients()
+        elif hasattr(part, 'params_yaml'):
+            info['params_yaml'] = part.params_yaml
+    return info

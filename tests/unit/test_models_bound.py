@@ -1,0 +1,80 @@
+"""The residual bound: its definition, and that it is never exceeded."""
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from hybrid_models.bound import apply_bound, half_width, output_range
+from hybrid_models.nets import HybridModel
+from hybrid_models.physical import build_physical
+from hybrid_models.vehicle import SHIP
+
+
+def test_output_range_is_the_central_95_percent_spread():
+    x = np.linspace(0.0, 1.0, 100_001)[:, None] * [1.0, 10.0]
+    np.testing.assert_allclose(output_range(x), [0.95, 9.5], rtol=1e-6)
+
+
+def test_half_width_follows_the_papers_size_ratio():
+    # Paper: physical range [-5, 5] and LSTM range [-1, 1] is a threshold of 20 %.
+    assert half_width(0.2, np.array([10.0]))[0] == pytest.approx(1.0)
+    assert math.isinf(half_width(None, np.array([10.0]))[0])
+    with pytest.raises(ValueError):
+        half_width(0.0, np.array([1.0]))
+
+
+@pytest.mark.parametrize('mode', ['tanh', 'clamp'])
+def test_bound_is_never_exceeded(mode):
+    torch.manual_seed(0)
+    bound = torch.tensor([1e-4, 0.01, 1.0, 50.0, math.inf])
+    x = torch.randn(20000, 5) * torch.logspace(-6, 6, 20000)[:, None]
+    x = torch.cat([x, torch.tensor([[1e30, -1e30, 3e38, -3e38, 7.0]])])
+    y = apply_bound(x, bound, mode)
+    assert (y[:, :4].abs() <= bound[:4]).all()
+    assert torch.equal(y[:, 4], x[:, 4])          # infinite bound: untouched
+    small = x[:, :4].abs() < 1e-3 * bound[:4]
+    assert torch.allclose(y[:, :4][small], x[:, :4][small], rtol=1e-5)
+
+
+def make_hybrid(**kw):
+    model = HybridModel(SHIP, build_physical({'kind': 'lin'}, SHIP), hidden=8, layers=2,
+                        dropout=0.0, **kw)
+    model.physical.bias.copy_(torch.tensor([6.0, 0, 0, 0, 0]))
+    model.output_range.copy_(torch.tensor([4.0, 0.6, 0.04, 0.03, 0.08]))
+    # Blow the head up so the raw residual would be far beyond any bound.
+    with torch.no_grad():
+        model.head.weight.mul_(1e3)
+        model.head.bias.fill_(50.0)
+    return model
+
+
+@pytest.mark.parametrize('mode', ['tanh', 'clamp'])
+def test_hybrid_residual_stays_within_bound_in_forecasts(mode):
+    model = make_hybrid(bound_mode=mode).eval()
+    model.set_threshold(0.15)
+    expected = 0.15 * model.output_range / 2
+    assert torch.allclose(model.bound, expected)
+    zw, cw, cf = torch.randn(16, 10, 5), torch.randn(16, 10, 6), torch.randn(16, 40, 6)
+    with torch.no_grad():
+        _, _, res = model.forecast(zw, cw, cf, return_parts=True)
+        tf = model.teacher_forced(zw, cw, cf, torch.randn(16, 40, 5))
+    for r in (res, tf):
+        assert (r.abs() <= model.bound).all()
+        assert (r.abs() > 0.5 * model.bound).any()    # the bound is actually active
+
+
+def test_bound_applies_in_training_only_when_asked():
+    zw, cw, cf = torch.randn(4, 5, 5), torch.randn(4, 5, 6), torch.randn(4, 8, 6)
+    for in_training, limited in ((False, False), (True, True)):
+        model = make_hybrid(bound_in_training=in_training).train()
+        model.set_threshold(0.1)
+        _, _, res = model.forecast(zw, cw, cf, return_parts=True)
+        assert bool((res.abs() <= model.bound).all()) == limited
+
+
+def test_threshold_needs_the_output_range():
+    model = HybridModel(SHIP, build_physical({'kind': 'lin'}, SHIP), hidden=4)
+    with pytest.raises(ValueError, match='output_range'):
+        model.set_threshold(0.15)

@@ -1,0 +1,88 @@
+"""hybrid_models.engine: the compiled forecast equals the torch model's forecast."""
+
+import numpy as np
+import pytest
+import torch
+
+from hybrid_models.engine import ForecastEngine
+from hybrid_models.models import build_model
+from hybrid_models.vehicle import SHIP
+
+W, H = 12, 40
+
+
+def make_model(physical, threshold, mode='tanh', seed=0):
+    torch.manual_seed(seed)
+    cfg = {'kind': 'hybrid', 'hidden': 16, 'layers': 2, 'dropout': 0.0, 'bound_mode': mode,
+           'physical': {'kind': physical, 'substeps': 2}}
+    model = build_model(cfg, SHIP)
+    rng = np.random.default_rng(seed)
+    with torch.no_grad():
+        model.state_mean.copy_(torch.tensor([6.0, 0.0, 0.0, 0.0, 0.0]))
+        model.state_std.copy_(torch.tensor([1.0, 0.2, 0.01, 0.005, 0.02]))
+        model.control_mean.copy_(torch.tensor([80.0, 0.0, 0.0, 3.0, 0.0, 0.0]))
+        model.control_std.copy_(torch.tensor([10.0, 0.05, 0.05, 1.0, 0.7, 0.7]))
+        model.residual_std.copy_(torch.tensor([0.02, 0.02, 0.002, 0.001, 0.002]))
+        model.output_range.copy_(torch.tensor([4.0, 1.0, 0.05, 0.02, 0.1]))
+        regression = getattr(model.physical, 'regression', None)
+        if physical in ('lin', 'hyd'):
+            regression = model.physical
+        if regression is not None:
+            weight = rng.normal(scale=1e-4, size=tuple(regression.weight.shape))
+            if physical == 'lin':   # a stable linear model: z' = z mostly
+                weight[:, 6:] += np.eye(5)
+            regression.weight.copy_(torch.as_tensor(weight))
+    model.set_threshold(threshold)
+    return model.eval()
+
+
+def inputs(batch, seed=1):
+    rng = np.random.default_rng(seed)
+    z = np.tile([6.5, 0.05, 0.0, -0.002, 0.01], (W, 1)) + rng.normal(scale=0.01, size=(W, 5))
+    c = np.tile([85.0, 0.02, 0.02, 3.0, 0.6, 0.8], (W, 1))
+    future = np.tile(c[-1], (batch, H, 1))
+    future[:, :, 1:3] += rng.normal(scale=0.02, size=(batch, 1, 2))
+    return z, c, future
+
+
+def torch_forecast(model, z, c, future, dtype):
+    model = model.to(dtype)
+    t = lambda a: torch.as_tensor(a, dtype=dtype)  # noqa: E731
+    batch = future.shape[0]
+    with torch.no_grad():
+        out, phys, _ = model.forecast(t(np.tile(z, (batch, 1, 1))),
+                                      t(np.tile(c, (batch, 1, 1))), t(future),
+                                      return_parts=True)
+    return out.double().numpy(), phys.double().numpy()
+
+
+@pytest.mark.parametrize('physical', ['pro+lin', 'min', 'lin', 'hyd'])
+def test_engine_matches_the_torch_model_in_double_precision(physical):
+    model = make_model(physical, threshold=0.15)
+    z, c, future = inputs(batch=3)
+    expected, expected_phys = torch_forecast(model, z, c, future, torch.float64)
+    engine = ForecastEngine(model, dtype=np.float64)
+    got = engine.forecast(z, c, future)
+    assert got.hybrid.shape == (3, H, 5)
+    np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(got.physics, expected_phys, rtol=1e-9, atol=1e-11)
+
+
+def test_engine_in_float32_stays_close_and_respects_the_bound():
+    model = make_model('pro+lin', threshold=0.05, mode='clamp')
+    z, c, future = inputs(batch=4)
+    expected, _ = torch_forecast(model, z, c, future, torch.float64)
+    got = ForecastEngine(make_model('pro+lin', threshold=0.05, mode='clamp')).forecast(
+        z, c, future)
+    scale = np.abs(expected).max(axis=(0, 1)) + 1e-3
+    assert np.max(np.abs(got.hybrid - expected) / scale) < 1e-3
+    bound = model.bound.double().numpy()
+    assert np.all(np.abs(got.hybrid - got.physics) <= bound * (1 + 1e-6))
+
+
+def test_unconstrained_model_passes_the_residual_through():
+    model = make_model('min', threshold=None)
+    z, c, future = inputs(batch=1)
+    expected, _ = torch_forecast(model, z, c, future, torch.float64)
+    got = ForecastEngine(model, dtype=np.float64).forecast(z, c, future[0])
+    np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)

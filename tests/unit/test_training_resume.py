@@ -1,0 +1,73 @@
+"""A killed training run resumes from its last epoch and ends where an unbroken run ends."""
+
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from safetensors.torch import load_file
+
+from hybrid_models.checkpoint import CheckpointError, read_header
+from hybrid_models.toy import write_toy_dataset
+from hybrid_models.training import load_config, train
+
+ROOT = Path(__file__).resolve().parents[2]
+SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
+LONGER = ['training.phases=[{kind: teacher, max_epochs: 3, patience: 9, lr: 0.005}, '
+          '{kind: multistep, max_epochs: 30, patience: 99, lr: 0.003}]',
+          'training.progress=false']
+
+
+def saved_epoch(path: Path) -> int:
+    try:
+        return read_header(path)['loop']['epoch']
+    except (CheckpointError, FileNotFoundError, KeyError):
+        return -1
+
+
+def test_resume_after_kill_loses_at_most_one_epoch(tmp_path):
+    toy = write_toy_dataset(tmp_path / 'toy', n_runs=6, n_samples=300)
+    out = tmp_path / 'run'
+    cmd = [sys.executable, str(ROOT / 'offline' / 'train.py'), str(SMOKE), '--dataset',
+           str(toy), '--out', str(out), '--quiet'] + sum([['--set', s] for s in LONGER], [])
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 60
+    while saved_epoch(out / 'last.safetensors') < 5 and proc.poll() is None:
+        assert time.monotonic() < deadline, 'training made no progress'
+        time.sleep(0.01)
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert proc.returncode == -signal.SIGKILL, 'the run finished before it could be killed'
+    lines_before = (out / 'log.jsonl').read_text().splitlines()
+    at_kill = saved_epoch(out / 'last.safetensors')
+    # At most the epoch in flight is lost: the checkpoint is at most one behind the log.
+    assert at_kill >= len(lines_before) - 1 and at_kill >= 5
+
+    resumed = subprocess.run(cmd + ['--resume'], capture_output=True, text=True, timeout=120)
+    assert resumed.returncode == 0, resumed.stderr
+    assert f'resuming at epoch {at_kill}' in resumed.stderr
+    epochs = [int(line.split('"epoch": ')[1].split(',')[0])
+              for line in (out / 'log.jsonl').read_text().splitlines()]
+    assert epochs == list(range(len(epochs)))          # no gap, no repeat
+
+    # The same config run without interruption ends with identical weights.
+    cfg = load_config(SMOKE, [f'dataset={toy}'] + LONGER)
+    train(cfg, tmp_path / 'unbroken')
+    a = load_file(str(out / 'model.safetensors'))
+    b = load_file(str(tmp_path / 'unbroken' / 'model.safetensors'))
+    assert a.keys() == b.keys()
+    for key in a:
+        assert (a[key] == b[key]).all(), key
+
+
+@pytest.mark.parametrize('content', [b'garbage'])
+def test_resume_refuses_a_foreign_last_checkpoint(tmp_path, content):
+    toy = write_toy_dataset(tmp_path / 'toy', n_runs=4, n_samples=200)
+    (tmp_path / 'run').mkdir()
+    (tmp_path / 'run' / 'last.safetensors').write_bytes(content)
+    cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'])
+    with pytest.raises(CheckpointError, match='not a hybrid_models checkpoint'):
+        train(cfg, tmp_path / 'run', resume=True)

@@ -1,0 +1,59 @@
+"""Smoke training end to end: every model kind trains, saves, loads and evaluates."""
+
+from pathlib import Path
+import time
+
+import pytest
+
+from hybrid_models.checkpoint import load_model
+from hybrid_models.nets import HybridModel
+from hybrid_models.toy import write_toy_dataset
+from hybrid_models.training import load_config, train
+
+ROOT = Path(__file__).resolve().parents[2]
+SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
+
+
+@pytest.fixture(scope='module')
+def toy(tmp_path_factory):
+    return write_toy_dataset(tmp_path_factory.mktemp('toy'), n_runs=8, n_samples=400)
+
+
+def test_smoke_hybrid_trains_both_phases_within_a_minute(toy, tmp_path):
+    cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'])
+    start = time.monotonic()
+    summary = train(cfg, tmp_path)
+    assert time.monotonic() - start < 60
+    assert summary['epochs'] >= 2 and summary['val']['score'] > 0
+    model, config = load_model(tmp_path / 'model.safetensors')
+    assert isinstance(model, HybridModel)
+    assert config['dataset']['sha256'] and len(config['bound']['output_range']) == 5
+    assert 'regression_coefficients' in config['physics']
+    kinds = [line for line in (tmp_path / 'log.jsonl').read_text().splitlines()]
+    assert '"teacher"' in kinds[0] and '"multistep"' in kinds[-1]
+
+
+@pytest.mark.parametrize('overrides', [
+    ['model.kind=qlag', 'model.lags=[1, 3]'],
+    ['model.kind=lstm', 'training.phases=[{kind: multistep, max_epochs: 2, patience: 2, '
+                        'lr: 0.005}]'],
+    ['model.relative_threshold=0.15', 'model.bound_in_training=true',
+     'model.bound_mode=clamp'],
+])
+def test_other_kinds_train_and_evaluate(toy, tmp_path, overrides):
+    import importlib.util
+    cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'] + overrides)
+    train(cfg, tmp_path / 'run')
+    spec = importlib.util.spec_from_file_location('evaluate', ROOT / 'offline' / 'evaluate.py')
+    evaluate = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(evaluate)
+    out = tmp_path / 'results'
+    args = [str(tmp_path / 'run'), '--dataset', str(toy), '--out', str(out), '--horizon',
+            '100', '--window', '20', '--stride', '100', '--labels', 'm', '--threads', '1']
+    if 'model.relative_threshold=0.15' in overrides:
+        args += ['--sweep', 'm', '--thresholds', '0.1', '0.5', '--physics-only']
+    assert evaluate.main(args) == 0
+    for name in ('table.md', 'results.json', 'states_over_time.png', 'trajectories.png',
+                 'trajectory_error_per_minute.png'):
+        assert (out / name).stat().st_size > 0, name
+    assert '| m |' in (out / 'table.md').read_text()
