@@ -1,11 +1,14 @@
 #!/usr/bin/env python3
 """
-Demo: run the simulator node faster than real time and show what it publishes.
+Demo: the simulator and the predictor running together, forecasts checked against truth.
 
-Starts the installed ``ship_sim_node simulator`` executable as a separate process (as
-``ros2 run`` would), listens on /vessel/odom, /vessel/actuators and /vessel/wind over
-DDS on this machine only, then prints a summary and writes a PNG of the track and the
-states. Every process it starts is stopped on exit, also on Ctrl-C.
+Starts the installed ``ship_sim_node simulator`` (faster than real time) and
+``hybrid_predictor predictor`` (the embedded default model) as separate processes, as
+``ros2 run`` would, all on DDS confined to this machine. A client listens to the
+forecasts and to the simulator's noise-free state, lets forecasts mature (a 900-step
+forecast needs 15 simulated minutes of truth), then prints the forecast-against-truth
+RMSE per state and the trajectory error, and writes a PNG of one forecast against
+what happened. Every process it starts is stopped on exit, also on Ctrl-C.
 """
 
 from __future__ import annotations
@@ -19,36 +22,46 @@ import subprocess
 import sys
 import time
 
+import numpy as np
+
 REPO = Path(__file__).resolve().parents[1]
 INSTALL = REPO / 'ros2_ws' / 'install'
+STATES = ('u', 'v', 'p', 'r', 'phi')
+UNITS = ('m/s', 'm/s', 'rad/s', 'rad/s', 'rad')
+START = 1_000_000.0   # stamp of simulated t = 0 (any fixed value; keeps stamps readable)
 
 
 def parse_args(argv=None):
     """Parse the command line."""
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--minutes', type=float, default=10.0,
-                        help='simulated minutes to watch (default 10)')
-    parser.add_argument('--speed-up', type=float, default=60.0,
-                        help='real-time factor of the simulator (default 60)')
-    parser.add_argument('--seed', type=int, default=1, help='simulation seed (default 1)')
+    parser.add_argument('--minutes', type=float, default=22.0,
+                        help='simulated minutes to run (default 22; > 16 so forecasts mature)')
+    parser.add_argument('--speed-up', type=float, default=30.0,
+                        help='real-time factor of the simulator (default 30)')
+    parser.add_argument('--seed', type=int, default=11, help='simulation seed (default 11)')
+    parser.add_argument('--evaluate-every', type=int, default=20, metavar='S',
+                        help='evaluate one forecast every S simulated seconds (default 20)')
     parser.add_argument('--out', type=Path, default=REPO / 'out' / 'demo',
-                        help='folder for the PNG (default out/demo)')
+                        help='folder for the PNG and JSON (default out/demo)')
     args = parser.parse_args(argv)
-    if args.minutes <= 0 or not 0.01 <= args.speed_up <= 1000:
-        parser.error('--minutes must be > 0 and --speed-up within [0.01, 1000]')
+    if args.minutes <= 16 or not 0.01 <= args.speed_up <= 1000 or args.evaluate_every < 1:
+        parser.error('--minutes must exceed 16, --speed-up lie in [0.01, 1000], '
+                     '--evaluate-every be >= 1')
     return args
 
 
-def start_simulator(seed: int, speed_up: float) -> subprocess.Popen:
-    """Start the installed simulator executable in its own process group."""
-    exe = INSTALL / 'ship_sim_node' / 'lib' / 'ship_sim_node' / 'simulator'
-    if not exe.is_file():
-        sys.exit(f'demo: error: {exe} is missing; run `make setup` first')
-    return subprocess.Popen(
-        [str(exe), '--ros-args', '-p', f'seed:={seed}', '-p', f'real_time_factor:={speed_up}',
-         '-p', 'publish_truth:=true', '--log-level', 'warn'],
-        start_new_session=True)
+def executable(package: str, name: str) -> Path:
+    """Return where `ros2 run PACKAGE NAME` finds the executable, or exit with a hint."""
+    path = INSTALL / package / 'lib' / package / name
+    if not path.is_file():
+        sys.exit(f'demo: error: {path} is missing; run `make setup` first')
+    return path
+
+
+def start(argv: list[str]) -> subprocess.Popen:
+    """Start a node in its own process group, its log lines shown on this terminal."""
+    return subprocess.Popen([str(a) for a in argv], start_new_session=True)
 
 
 def stop(process: subprocess.Popen) -> None:
@@ -62,113 +75,173 @@ def stop(process: subprocess.Popen) -> None:
             process.wait()
 
 
-def collect(seconds: float, speed_up: float):
-    """Listen to the simulator's topics until `seconds` of simulated time have arrived."""
-    from geometry_msgs.msg import Vector3Stamped
+def collect(seconds: float, speed_up: float, every: int, start_simulator):
+    """
+    Wait for the predictor, start the simulator, listen until `seconds` of truth arrived.
+
+    Returns (truth by simulated second, kept forecasts by their start second).
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry
     import rclpy
-    from sensor_msgs.msg import JointState
+
+    from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge import messages as m
 
     rclpy.init()
-    node = rclpy.create_node('demo_listener')
-    rows = {'odom': [], 'actuators': [], 'wind': []}
-    node.create_subscription(Odometry, m.ODOM_TRUE_TOPIC, lambda msg: rows['odom'].append(
-        (m.seconds_from_stamp(msg.header.stamp), m.state_from_odometry(msg))), 100)
-    node.create_subscription(JointState, m.ACTUATORS_TOPIC, lambda msg: rows['actuators'].append(
-        m.actuators_from_joint_state(msg)), 100)
-    node.create_subscription(Vector3Stamped, m.WIND_TOPIC, lambda msg: rows['wind'].append(
-        m.measurement_from_wind(msg)), 100)
-    deadline = time.monotonic() + 30.0 + 2.0 * seconds / speed_up
-    last_report = 0.0
-    try:
-        while time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.1)
-            have = len(rows['odom'])
-            if have >= seconds:
-                break
-            if time.monotonic() - last_report > 2.0:
-                print(f'\r  received {have}/{int(seconds)} simulated seconds', end='',
-                      file=sys.stderr, flush=True)
-                last_report = time.monotonic()
-    finally:
-        print(file=sys.stderr)
+    node = rclpy.create_node('demo_client')
+    truth: dict[int, tuple] = {}
+    forecasts: dict[int, Forecast] = {}
+
+    def on_truth(msg):
+        t = int(round(m.seconds_from_stamp(msg.header.stamp) - START))
+        state = m.state_from_odometry(msg)
+        truth[t] = (np.array([state[s] for s in STATES]), msg.pose.pose.position.x,
+                    msg.pose.pose.position.y)
+
+    def on_forecast(msg):
+        t = int(round(m.seconds_from_stamp(msg.header.stamp) - START))
+        if t % every == 0:
+            forecasts[t] = msg
+
+    node.create_subscription(Odometry, m.ODOM_TRUE_TOPIC, on_truth, 100)
+    node.create_subscription(Forecast, '/vessel/forecast', on_forecast, 10)
+    ready = []
+    node.create_subscription(DiagnosticArray, '/diagnostics', ready.append, 10)
+    deadline = time.monotonic() + 120.0
+    while not ready and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)   # the predictor compiles its model first
+    if not ready:
         node.destroy_node()
         rclpy.try_shutdown()
-    return rows
+        sys.exit('demo: error: the predictor did not come up within 120 s')
+    start_simulator()
+    deadline = time.monotonic() + 60.0 + 3.0 * seconds / speed_up
+    last_report = 0.0
+    try:
+        while time.monotonic() < deadline and len(truth) < seconds:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if time.monotonic() - last_report > 3.0:
+                print(f'  simulated {len(truth) / 60:5.1f} of {seconds / 60:.0f} min, '
+                      f'{len(forecasts)} forecasts kept', file=sys.stderr, flush=True)
+                last_report = time.monotonic()
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return truth, forecasts
 
 
-def summarize(rows) -> str:
-    """Return a human summary of the received run."""
-    states = [s for _, s in rows['odom']]
-    if len(states) < 2:
-        return 'no data arrived'
-    speed = [math.hypot(s['u'], s['v']) for s in states]
-    distance = math.hypot(states[-1]['x'] - states[0]['x'], states[-1]['y'] - states[0]['y'])
-    roll = [abs(math.degrees(s['phi'])) for s in states]
-    rpm = [a['n'] * 60 / (2 * math.pi) for a in rows['actuators'] if 'n' in a]
-    wind = [w['wind_speed'] for w in rows['wind']]
-    lines = [
-        f'  simulated time      {len(states)} s ({len(states) / 60:.1f} min)',
-        f'  speed over ground   mean {sum(speed) / len(speed):.2f} m/s, '
-        f'range {min(speed):.2f}-{max(speed):.2f} m/s',
-        f'  distance made good  {distance:.0f} m',
-        f'  roll angle          max {max(roll):.2f} deg',
-        f'  shaft speed         {min(rpm):.0f}-{max(rpm):.0f} rpm' if rpm else '',
-        f'  true wind           mean {sum(wind) / len(wind):.1f} m/s' if wind else '',
-    ]
-    return '\n'.join(line for line in lines if line)
+def evaluate(truth, forecasts):
+    """Compare every matured forecast with the truth; return the figures and the pairs."""
+    pairs = []
+    for t0, msg in sorted(forecasts.items()):
+        steps = range(t0 + 1, t0 + 1 + msg.horizon)
+        if not all(k in truth for k in steps):
+            continue   # not matured yet, or truth samples missing
+        predicted = np.reshape(msg.hybrid, (msg.horizon, len(STATES)))
+        actual = np.array([truth[k][0] for k in steps])
+        true_track = np.array([truth[k][1:] for k in steps])
+        track_error = np.hypot(np.asarray(msg.x) - true_track[:, 0],
+                               np.asarray(msg.y) - true_track[:, 1])
+        pairs.append((t0, msg, predicted, actual, track_error, true_track))
+    if not pairs:
+        return None, pairs
+    errors = np.stack([p[2] - p[3] for p in pairs])
+    rmse = np.sqrt(np.mean(errors ** 2, axis=(0, 1)))
+    track = np.stack([p[4] for p in pairs])
+    per_forecast = track.mean(axis=1)
+    figures = {
+        'forecasts_evaluated': len(pairs),
+        'horizon_steps': int(pairs[0][1].horizon),
+        'rmse': {s: float(v) for s, v in zip(STATES, rmse, strict=True)},
+        'trajectory_error_m': {
+            'mean': float(track.mean()),
+            'ci95': float(1.96 * per_forecast.std(ddof=1) / math.sqrt(len(pairs)))
+            if len(pairs) > 1 else None,
+            'at_5_min': float(track[:, 299].mean()),
+            'at_15_min': float(track[:, -1].mean()),
+        },
+        'model_id': pairs[0][1].model_id,
+    }
+    return figures, pairs
 
 
-def plot(rows, path: Path) -> None:
-    """Write a PNG of the track (NED, north up) and the five model states over time."""
+def plot(pair, path: Path) -> None:
+    """Write a PNG of one forecast (hybrid and its physics part) against the truth."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    t0 = rows['odom'][0][0]
-    t = [ts - t0 for ts, _ in rows['odom']]
-    states = [s for _, s in rows['odom']]
-    fig = plt.figure(figsize=(12, 7), constrained_layout=True)
-    grid = fig.add_gridspec(5, 2)
-    track = fig.add_subplot(grid[:, 0])
-    track.plot([s['y'] for s in states], [s['x'] for s in states])
-    track.plot(states[0]['y'], states[0]['x'], 'go', label='start')
-    track.set(xlabel='east (m)', ylabel='north (m)', title='track (noise-free)', aspect='equal')
-    track.legend()
-    labels = {'u': 'u (m/s)', 'v': 'v (m/s)', 'p': 'p (rad/s)', 'r': 'r (rad/s)',
-              'phi': 'phi (rad)'}
-    for i, (key, label) in enumerate(labels.items()):
+    t0, msg, predicted, actual, _, true_track = pair
+    physics = np.reshape(msg.physics, predicted.shape)
+    bound = np.asarray(msg.residual_bound)
+    minutes = np.arange(1, msg.horizon + 1) / 60.0
+    fig = plt.figure(figsize=(13, 8), constrained_layout=True)
+    grid = fig.add_gridspec(len(STATES), 2)
+    for i, (state, unit) in enumerate(zip(STATES, UNITS, strict=True)):
         ax = fig.add_subplot(grid[i, 1])
-        ax.plot(t, [s[key] for s in states], lw=0.8)
-        ax.set_ylabel(label)
-        if i == len(labels) - 1:
-            ax.set_xlabel('simulated time (s)')
+        ax.plot(minutes, actual[:, i], 'k', lw=1, label='truth')
+        ax.plot(minutes, predicted[:, i], 'C1', lw=1, label='hybrid forecast')
+        ax.fill_between(minutes, physics[:, i] - bound[i], physics[:, i] + bound[i],
+                        color='C0', alpha=0.2, label='physics part ± LSTM bound')
+        ax.set_ylabel(f'{state} ({unit})')
+        if i == 0:
+            ax.legend(loc='upper right', fontsize=8)
+    ax.set_xlabel('minutes after the forecast was made')
+    track_ax = fig.add_subplot(grid[:, 0])
+    track_ax.plot(true_track[:, 0], true_track[:, 1], 'k', label='true track')
+    track_ax.plot(msg.x, msg.y, 'C1', label='forecast track')
+    track_ax.set(xlabel='east (m)', ylabel='north (m)', aspect='equal',
+                 title=f'forecast made at t = {t0} s, 15 min ahead')
+    track_ax.legend()
+    fig.suptitle(f'model {msg.model_id}')
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=100)
     plt.close(fig)
 
 
 def main(argv=None) -> int:
     """Run the demo; return the exit code."""
+    import json
+
     args = parse_args(argv)
     seconds = args.minutes * 60.0
-    print(f'demo: simulator at {args.speed_up:g}x real time, watching {args.minutes:g} '
-          f'simulated minutes (about {seconds / args.speed_up:.0f} s)')
-    simulator = start_simulator(args.seed, args.speed_up)
+    print(f'demo: simulator at {args.speed_up:g}x real time with the predictor; '
+          f'{args.minutes:g} simulated minutes (about {seconds / args.speed_up:.0f} s)')
+    processes = [start([executable('hybrid_predictor', 'predictor'), '--ros-args',
+                        '-p', 'use_sim_time:=true'])]
+
+    def start_simulator():
+        processes.append(start([
+            executable('ship_sim_node', 'simulator'), '--ros-args', '-p', f'seed:={args.seed}',
+            '-p', f'real_time_factor:={args.speed_up}', '-p', 'publish_truth:=true',
+            '-p', f'start_time:={START}', '--log-level', 'warn']))
+
     try:
-        rows = collect(seconds, args.speed_up)
+        truth, forecasts = collect(seconds, args.speed_up, args.evaluate_every,
+                                   start_simulator)
     finally:
-        stop(simulator)
-    if len(rows['odom']) < 2:
-        print('demo: error: the simulator published nothing; see its output above',
-              file=sys.stderr)
+        for process in reversed(processes):
+            stop(process)
+    figures, pairs = evaluate(truth, forecasts)
+    if figures is None:
+        print(f'demo: error: no forecast matured ({len(forecasts)} forecasts, {len(truth)} s '
+              "of truth); see the nodes' output above", file=sys.stderr)
         return 1
-    print('demo: what the simulator published\n' + summarize(rows))
-    png = args.out / 'simulator.png'
-    plot(rows, png)
-    print(f'demo: wrote {png}')
+    print(f'demo: {figures["forecasts_evaluated"]} forecasts of {figures["horizon_steps"]} '
+          f'steps against the simulator\'s truth (model {figures["model_id"]})')
+    for state, unit in zip(STATES, UNITS, strict=True):
+        print(f'  RMSE {state:>3}  {figures["rmse"][state]:.4f} {unit}')
+    traj = figures['trajectory_error_m']
+    ci = f' ± {traj["ci95"]:.0f}' if traj['ci95'] is not None else ''
+    print(f'  trajectory error  mean {traj["mean"]:.0f}{ci} m over 15 min '
+          f'({traj["at_5_min"]:.0f} m after 5 min, {traj["at_15_min"]:.0f} m after 15 min)')
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / 'demo.json').write_text(json.dumps(figures, indent=2))
+    png = args.out / 'forecast_vs_truth.png'
+    plot(pairs[len(pairs) // 2], png)
+    print(f'demo: wrote {png} and {args.out / "demo.json"}')
     return 0
 
 

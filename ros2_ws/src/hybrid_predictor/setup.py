@@ -13,6 +13,7 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
+        ('share/' + PACKAGE + '/models/default', glob('models/default/*')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,
@@ -20,5 +21,5 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='ROS 2 node serving hybrid ship-motion forecasts.',
     license='Apache-2.0',
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': ['predictor = hybrid_predictor.node:main']},
 )

@@ -24,13 +24,13 @@ from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
-from vessel_ros_bridge import messages
-from vessel_ros_bridge.lifecycle import run_node
-from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
 
 from ship_sim_node.command_gate import CommandGate, CommandLimits
 from vessel_physics.config import ConfigError, load_config
 from vessel_physics.simulator import Simulator
+from vessel_ros_bridge import messages
+from vessel_ros_bridge.lifecycle import run_node
+from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
 
 NODE_NAME = 'simulator'
 
@@ -89,14 +89,15 @@ class SimulatorNode(Node):
         world, body = self._params['world_frame'], self._params['body_frame']
         if self.clock_pub is not None:
             self.clock_pub.publish(ClockMsg(clock=stamp))
-        self.odom_pub.publish(messages.odometry_from_state(values, stamp, world, body))
+        # The state goes last: a consumer holding a state has the whole sample.
+        self.actuator_pub.publish(messages.joint_state_from_actuators(values, stamp))
+        self.wind_pub.publish(messages.wind_from_measurement(
+            values['wind_speed'], values['wind_dir_cos'], values['wind_dir_sin'], stamp, body))
         if self.truth_pub is not None:
             truth = {key: values[key + '_true'] for key in ('u', 'v', 'p', 'r', 'phi', 'psi',
                                                              'x', 'y')}
             self.truth_pub.publish(messages.odometry_from_state(truth, stamp, world, body))
-        self.actuator_pub.publish(messages.joint_state_from_actuators(values, stamp))
-        self.wind_pub.publish(messages.wind_from_measurement(
-            values['wind_speed'], values['wind_dir_cos'], values['wind_dir_sin'], stamp, body))
+        self.odom_pub.publish(messages.odometry_from_state(values, stamp, world, body))
 
     # ------------------------------------------------------------------ inputs
     def _on_command(self, msg: JointState) -> None:

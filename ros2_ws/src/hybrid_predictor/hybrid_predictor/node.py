@@ -1,0 +1,298 @@
+"""
+The predictor node: a thin ROS 2 adapter around ``hybrid_models.engine``.
+
+Inputs (docs/conventions.md): ``/vessel/odom``, ``/vessel/actuators``, ``/vessel/wind``,
+optionally ``/vessel/control_plan`` (hybrid_predictor_interfaces/ControlPlan).
+Outputs: ``/vessel/forecast`` (Forecast: hybrid forecast, its physical part, the
+LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path) and
+``/diagnostics``. Service ``~/predict`` (Predict): forecasts for candidate control
+plans, evaluated as one batch. Window assembly, plan checks and health figures live in
+ROS-free modules of this package; the numerics in ``hybrid_models``.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+import sys
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, Vector3Stamped
+from nav_msgs.msg import Odometry
+from nav_msgs.msg import Path as PathMsg
+import numpy as np
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+
+from hybrid_models.checkpoint import CheckpointError
+from hybrid_models.engine import ForecastEngine
+from hybrid_models.metrics import POSITIONS
+from hybrid_predictor.health import Health
+from hybrid_predictor.input_window import InputWindow
+from hybrid_predictor.plans import (
+    ActuatorLimits,
+    PlanError,
+    bound_hit_fraction,
+    hold_latest,
+    plan_controls,
+    track,
+)
+from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
+from hybrid_predictor_interfaces.srv import Predict
+from vessel_physics import frames
+from vessel_physics.params import load_named_vessel
+from vessel_ros_bridge import messages
+from vessel_ros_bridge.lifecycle import run_node
+from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
+
+NODE_NAME = 'predictor'
+FORECAST_TOPIC = '/vessel/forecast'
+PATH_TOPIC = '/vessel/forecast/path'
+PLAN_TOPIC = '/vessel/control_plan'
+DEFAULT_MODEL = ('models', 'default', 'model.safetensors')
+PLAN_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd', 'wind_speed', 'wind_direction')
+
+
+def default_model_path() -> Path:
+    """Return the installed path of the model shipped with this package."""
+    from ament_index_python.packages import get_package_share_directory
+
+    return Path(get_package_share_directory('hybrid_predictor')).joinpath(*DEFAULT_MODEL)
+
+
+class PredictorNode(Node):
+    """Serve forecasts of the vessel's motion from the latest measurement window."""
+
+    def __init__(self, **kwargs):
+        super().__init__(NODE_NAME, **kwargs)
+        p = declare_from_specs(self, load_specs(package_config('hybrid_predictor',
+                                                               'predictor.yaml')))
+        self.p = p
+        path = Path(p['model_path']) if p['model_path'] else default_model_path()
+        self.engine = ForecastEngine.from_checkpoint(path)
+        model = self.engine.model
+        if p['relative_threshold'] > 0:
+            model.set_threshold(p['relative_threshold'])
+            self.engine = ForecastEngine(model, model_id=self.engine.model_id,
+                                         config=self.engine.config)
+        self.spec = model.spec
+        self.horizon = p['horizon']
+        vessel = getattr(getattr(model.physical, 'first_principles', model.physical),
+                         'params', None) or load_named_vessel('nominal_vessel')
+        self.limits = ActuatorLimits(vessel.shaft_max_speed, vessel.rudder_max_angle)
+        window = self.engine.window
+        self.window = InputWindow(window, self.spec.dt, p['max_gap'], p['max_age'])
+        self.health = Health()
+        self.rejected = {'malformed': 0}
+        self.last_forecast_t = -math.inf
+        self.latest_plan: ControlPlan | None = None
+        self.pending_ns: int | None = None   # arrival of a state awaiting its forecast
+        self.sync_timer = None
+        started = time.perf_counter()
+        self.engine.warm_up(self.horizon, window=window, max_batch=p['max_plans'])
+        self.get_logger().info(
+            f'model {self.engine.model_id} ({path}); window {window}, horizon '
+            f'{self.horizon}, bound {np.round(self.engine.bound, 5).tolist()}; compiled in '
+            f'{time.perf_counter() - started:.1f} s')
+
+        self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
+        self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
+        self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self.create_subscription(Odometry, messages.ODOM_TOPIC, self._on_odom, 10)
+        self.create_subscription(JointState, messages.ACTUATORS_TOPIC, self._on_actuators, 10)
+        self.create_subscription(Vector3Stamped, messages.WIND_TOPIC, self._on_wind, 10)
+        self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10)
+        self.create_service(Predict, '~/predict', self._on_predict)
+        self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    # ------------------------------------------------------------------ inputs
+    def _push(self, stream: str, stamp, values) -> bool:
+        reason = self.window.push(stream, messages.seconds_from_stamp(stamp), values)
+        if reason:
+            self.get_logger().warning(f'rejected input: {reason}', throttle_duration_sec=5.0)
+        return reason is None
+
+    def _on_odom(self, msg: Odometry, info=None) -> None:
+        state = messages.state_from_odometry(msg)
+        if not self._push('state', msg.header.stamp, state):
+            return
+        t = messages.seconds_from_stamp(msg.header.stamp)
+        if t - self.last_forecast_t < self.p['forecast_period']:
+            return
+        received_ns = (info or {}).get('received_timestamp') or time.time_ns()
+        if (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']:
+            return  # a queued message: a newer one is on its way, forecast that one
+        self.pending_ns = received_ns
+        self._forecast_when_synced()
+
+    def _on_actuators(self, msg: JointState) -> None:
+        try:
+            values = messages.actuators_from_joint_state(msg)
+        except ValueError as exc:
+            self.rejected['malformed'] += 1
+            self.get_logger().warning(f'rejected actuators: {exc}', throttle_duration_sec=5.0)
+            return
+        if self._push('actuators', msg.header.stamp, values):
+            self._forecast_when_synced()
+
+    def _on_wind(self, msg: Vector3Stamped) -> None:
+        if self._push('wind', msg.header.stamp, messages.measurement_from_wind(msg)):
+            self._forecast_when_synced()
+
+    def _forecast_when_synced(self) -> None:
+        # A sample's actuators and wind may arrive just after its state: wait for them
+        # (up to sync_timeout) so the forecast never holds the previous second's controls.
+        if self.pending_ns is None:
+            return
+        t_state = self.window.streams['state'].latest_time
+        if all((stream.latest_time or -math.inf) >= t_state
+               for stream in self.window.streams.values()):
+            self._forecast_pending()
+        elif self.sync_timer is None:
+            self.sync_timer = self.create_timer(self.p['sync_timeout'], self._forecast_pending,
+                                                clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _forecast_pending(self) -> None:
+        if self.sync_timer is not None:
+            self.destroy_timer(self.sync_timer)
+            self.sync_timer = None
+        received_ns, self.pending_ns = self.pending_ns, None
+        if received_ns is not None:
+            self._forecast_and_publish(received_ns)
+
+    def _on_plan(self, msg: ControlPlan) -> None:
+        self.latest_plan = msg
+
+    # ------------------------------------------------------------------ forecasting
+    def _now(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def _window(self):
+        result = self.window.assemble(self._now())
+        self.health.record_window(result.status, result.reason, result.fill, result.age)
+        return result
+
+    def _future_controls(self, result) -> np.ndarray:
+        plan = self.latest_plan
+        if plan is not None:
+            age = result.t_end - messages.seconds_from_stamp(plan.header.stamp)
+            if 0.0 <= age <= self.p['plan_timeout']:
+                shift = int(round(age / self.spec.dt))
+                fields = {f: np.asarray(getattr(plan, f))[shift:shift + self.horizon]
+                          for f in PLAN_FIELDS}
+                try:
+                    return plan_controls(fields, result.controls[-1], self.horizon,
+                                         self.limits)[None]
+                except PlanError as exc:
+                    self.get_logger().warning(f'ignoring {PLAN_TOPIC}: {exc}',
+                                              throttle_duration_sec=5.0)
+        return hold_latest(result.controls[-1], self.horizon)
+
+    def _forecast_and_publish(self, received_ns: int) -> None:
+        result = self._window()
+        if not result.ready:
+            return
+        forecast = self.engine.forecast(result.states, result.controls,
+                                        self._future_controls(result))
+        msg = self._forecast_message(result, forecast.hybrid[0], forecast.physics[0])
+        self.forecast_pub.publish(msg)
+        self.last_forecast_t = result.t_end
+        latency_ms = (time.time_ns() - received_ns) * 1e-6
+        self.health.record_forecast(latency_ms, bound_hit_fraction(
+            forecast.hybrid, forecast.physics, self.engine.bound))
+        self.path_pub.publish(self._path_message(msg))
+
+    def _forecast_message(self, result, hybrid: np.ndarray, physics: np.ndarray) -> Forecast:
+        north, east, psi = track(hybrid, result.pose, self.spec.dt, self._positions)
+        x_enu, y_enu, _ = frames.position_ned_to_enu(north, east)
+        msg = Forecast()
+        msg.header.stamp = messages.stamp_from_seconds(result.t_end)
+        msg.header.frame_id = self.p['world_frame']
+        msg.step_period = float(self.spec.dt)
+        msg.horizon = self.horizon
+        msg.state_names = list(self.spec.state_names)
+        msg.state_units = list(self.spec.state_units)
+        msg.hybrid = hybrid.ravel().tolist()
+        msg.physics = physics.ravel().tolist()
+        msg.residual_bound = self.engine.bound.tolist()
+        msg.x, msg.y = x_enu.tolist(), y_enu.tolist()
+        msg.heading = frames.heading_ned_to_enu(psi).tolist()
+        msg.model_id = self.engine.model_id
+        return msg
+
+    def _positions(self, states: np.ndarray) -> np.ndarray:
+        return POSITIONS[self.spec.name](states, self.spec)
+
+    def _path_message(self, forecast: Forecast) -> PathMsg:
+        path = PathMsg()
+        path.header = forecast.header
+        t0 = messages.seconds_from_stamp(forecast.header.stamp)
+        for k, (x, y, yaw) in enumerate(zip(forecast.x, forecast.y, forecast.heading,
+                                            strict=True)):
+            pose = PoseStamped()
+            pose.header.frame_id = forecast.header.frame_id
+            pose.header.stamp = messages.stamp_from_seconds(t0 + (k + 1) * forecast.step_period)
+            pose.pose.position.x, pose.pose.position.y = x, y
+            pose.pose.orientation.z = math.sin(yaw / 2)
+            pose.pose.orientation.w = math.cos(yaw / 2)
+            path.poses.append(pose)
+        return path
+
+    def _on_predict(self, request, response):
+        plans = request.plans
+        if not 1 <= len(plans) <= self.p['max_plans']:
+            response.success = False
+            response.message = f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}'
+            return response
+        result = self._window()
+        if not result.ready:
+            response.success = False
+            response.message = f'no forecast: {result.reason}'
+            return response
+        try:
+            future = np.stack([
+                plan_controls({f: np.asarray(getattr(plan, f)) for f in PLAN_FIELDS},
+                              result.controls[-1], self.horizon, self.limits, index=i)
+                for i, plan in enumerate(plans)])
+        except PlanError as exc:
+            response.success = False
+            response.message = str(exc)
+            return response
+        forecast = self.engine.forecast(result.states, result.controls, future)
+        response.forecasts = [self._forecast_message(result, forecast.hybrid[i],
+                                                     forecast.physics[i])
+                              for i in range(len(plans))]
+        response.success = True
+        response.message = f'{len(plans)} forecasts from the window ending at ' \
+                           f'{result.t_end:.3f} s'
+        return response
+
+    # ------------------------------------------------------------------ health
+    def _publish_diagnostics(self) -> None:
+        rejected = dict(self.rejected)
+        for stream in self.window.streams.values():
+            counts = stream.counts
+            for reason in ('non_finite', 'duplicate', 'out_of_order', 'incomplete'):
+                value = getattr(counts, reason)
+                rejected[reason] = rejected.get(reason, 0) + value
+        level, message, values = self.health.report(rejected)
+        status = DiagnosticStatus(level=bytes([level]), name=f'{self.get_name()}: forecast',
+                                  message=message, hardware_id=self.engine.model_id)
+        status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
+        diag = DiagnosticArray(status=[status])
+        diag.header.stamp = self.get_clock().now().to_msg()
+        self.diag_pub.publish(diag)
+
+
+def main(args=None) -> int:
+    """Run the predictor until interrupted; exit 2 with one line on a bad model or value."""
+    return run_node(PredictorNode, NODE_NAME, (CheckpointError, FileNotFoundError,
+                                               ValueError), args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
+

@@ -1,0 +1,103 @@
+"""
+Control plans for a forecast: validation and the model's future-control matrix (no ROS).
+
+A forecast needs one control vector per step, c = [n, delta_port, delta_stbd,
+wind_speed, wind_dir_cos, wind_dir_sin] (docs/conventions.md). Controllers give the
+actuator set-points; the wind is either given too or held at its latest measurement.
+Plans are checked before they reach the model: a wrong length, a non-finite value or
+a set-point outside the actuator limits is refused with a reason.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+ACTUATOR_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd')
+WIND_FIELDS = ('wind_speed', 'wind_direction')
+
+
+class PlanError(ValueError):
+    """A control plan cannot be used; the message says why."""
+
+
+@dataclass(frozen=True)
+class ActuatorLimits:
+    """Plausible set-points: shaft speed in [0, shaft_max] rad/s, |rudder| <= rudder_max."""
+
+    shaft_max: float
+    rudder_max: float
+
+
+def hold_latest(latest_control: np.ndarray, horizon: int) -> np.ndarray:
+    """Return the future controls (1, horizon, 6) that keep the latest controls."""
+    return np.broadcast_to(latest_control, (1, horizon, latest_control.shape[-1])).copy()
+
+
+def plan_controls(plan: dict[str, np.ndarray], latest_control: np.ndarray, horizon: int,
+                  limits: ActuatorLimits, index: int = 0) -> np.ndarray:
+    """
+    Return one plan's future controls (horizon, 6), or raise PlanError.
+
+    ``plan`` maps the field names of hybrid_predictor_interfaces/ControlPlan to arrays;
+    the actuator fields must have exactly ``horizon`` entries; the wind fields either
+    ``horizon`` entries each or none (the latest measured wind holds).
+    """
+    where = f'plan {index}'
+    arrays = {}
+    for name in ACTUATOR_FIELDS + WIND_FIELDS:
+        values = np.asarray(plan.get(name, ()), dtype=float).reshape(-1)
+        if name in ACTUATOR_FIELDS or len(values):
+            if len(values) != horizon:
+                raise PlanError(f'{where}: {name} has {len(values)} entries, need {horizon}')
+            bad = np.flatnonzero(~np.isfinite(values))
+            if len(bad):
+                raise PlanError(f'{where}: {name}[{bad[0]}] is {values[bad[0]]}')
+        arrays[name] = values
+    if np.any(arrays['shaft_speed'] < 0) or np.any(arrays['shaft_speed'] > limits.shaft_max):
+        raise PlanError(f'{where}: shaft_speed outside [0, {limits.shaft_max:.4g}] rad/s')
+    for name in ('rudder_port', 'rudder_stbd'):
+        if np.any(np.abs(arrays[name]) > limits.rudder_max):
+            raise PlanError(f'{where}: {name} outside +-{limits.rudder_max:.4g} rad')
+    out = np.empty((horizon, 6))
+    out[:, 0], out[:, 1], out[:, 2] = (arrays[n] for n in ACTUATOR_FIELDS)
+    if len(arrays['wind_speed']):
+        if np.any(arrays['wind_speed'] < 0):
+            raise PlanError(f'{where}: wind_speed must be >= 0')
+        out[:, 3] = arrays['wind_speed']
+        out[:, 4] = np.cos(arrays['wind_direction'])
+        out[:, 5] = np.sin(arrays['wind_direction'])
+    else:
+        out[:, 3:] = latest_control[3:]
+    return out
+
+
+def track(states: np.ndarray, pose: tuple[float, float, float], dt: float,
+          positions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return the forecast track: north, east (m, NED) and heading (rad) per step.
+
+    ``positions(states)`` is the trajectory metric's integration from the origin with
+    heading 0 (hybrid_models.metrics); starting from ``pose`` = (x, y, psi) instead only
+    rotates that track by psi and shifts it, so the published track is exactly what
+    the trajectory error measures.
+    """
+    x0, y0, psi0 = pose
+    local = positions(states)                       # (..., H, 2) north, east
+    cos_p, sin_p = math.cos(psi0), math.sin(psi0)
+    north = x0 + cos_p * local[..., 0] - sin_p * local[..., 1]
+    east = y0 + sin_p * local[..., 0] + cos_p * local[..., 1]
+    heading = psi0 + dt * np.cumsum(states[..., 3], axis=-1)
+    return north, east, heading
+
+
+def bound_hit_fraction(hybrid: np.ndarray, physics: np.ndarray, bound: np.ndarray,
+                       margin: float = 0.99) -> float:
+    """Fraction of forecast values whose LSTM correction reaches ``margin`` x its bound."""
+    finite = np.isfinite(bound)
+    if not finite.any():
+        return 0.0
+    correction = np.abs(hybrid - physics)[..., finite]
+    return float(np.mean(correction >= margin * bound[finite]))

@@ -1,0 +1,219 @@
+"""The predictor node over real DDS, fed by the simulator node or by the test itself."""
+
+import math
+
+import numpy as np
+import pytest
+
+from .conftest import spin_until
+
+pytestmark = pytest.mark.ros
+
+START = 5000.0
+THRESHOLD = 0.15
+
+
+class Inputs:
+    """Keep every input message the predictor sees, to rebuild its window offline."""
+
+    def __init__(self, node):
+        from geometry_msgs.msg import Vector3Stamped
+        from nav_msgs.msg import Odometry
+        from sensor_msgs.msg import JointState
+
+        self.odom, self.actuators, self.wind = [], [], []
+        node.create_subscription(Odometry, '/vessel/odom', self.odom.append, 100)
+        node.create_subscription(JointState, '/vessel/actuators', self.actuators.append, 100)
+        node.create_subscription(Vector3Stamped, '/vessel/wind', self.wind.append, 100)
+
+    def window_until(self, t_end, window):
+        """Return the window a predictor with these inputs assembles at t_end."""
+        from hybrid_predictor.input_window import InputWindow
+        from vessel_ros_bridge import messages as m
+
+        w = InputWindow(window, 1.0, max_gap=2.5, max_age=5.0)
+        for msg in self.odom:
+            t = m.seconds_from_stamp(msg.header.stamp)
+            if t <= t_end:
+                w.push('state', t, m.state_from_odometry(msg))
+        for msg in self.actuators:
+            w.push('actuators', m.seconds_from_stamp(msg.header.stamp),
+                   m.actuators_from_joint_state(msg))
+        for msg in self.wind:
+            w.push('wind', m.seconds_from_stamp(msg.header.stamp), m.measurement_from_wind(msg))
+        return w.assemble(now=t_end)
+
+
+def start_pair(launcher, *predictor_params):
+    launcher.start_node('ship_sim_node', 'simulator', '--ros-args', '-p', 'seed:=3',
+                        '-p', f'start_time:={START}', '-p', 'real_time_factor:=20.0')
+    args = ['--ros-args', '-p', 'use_sim_time:=true']
+    for p in predictor_params:
+        args += ['-p', p]
+    return launcher.start_node('hybrid_predictor', 'predictor', *args)
+
+
+def default_model():
+    from hybrid_models.checkpoint import load_model
+    from hybrid_predictor.node import default_model_path
+
+    model, config = load_model(default_model_path())
+    model.set_threshold(THRESHOLD)
+    return model.eval().double(), config
+
+
+def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_model(
+        launcher, ros_node):
+    import torch
+
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge import messages as m
+
+    inputs = Inputs(ros_node)
+    forecasts = []
+    ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 10)
+    start_pair(launcher)
+    assert spin_until(ros_node, lambda: len(forecasts) >= 2, 90), 'no forecast arrived'
+
+    msg = forecasts[-1]
+    assert msg.horizon == 900 and msg.step_period == 1.0
+    assert list(msg.state_names) == ['u', 'v', 'p', 'r', 'phi']
+    assert len(msg.hybrid) == len(msg.physics) == 900 * 5
+    assert len(msg.x) == len(msg.y) == len(msg.heading) == 900
+    assert msg.header.frame_id == 'odom'
+    t_end = m.seconds_from_stamp(msg.header.stamp)
+    assert t_end in [m.seconds_from_stamp(o.header.stamp) for o in inputs.odom]
+    hybrid = np.reshape(msg.hybrid, (900, 5))
+    physics = np.reshape(msg.physics, (900, 5))
+    bound = np.asarray(msg.residual_bound)
+    assert np.all(np.abs(hybrid - physics) <= bound * (1 + 1e-6))
+
+    # The trajectory starts one step ahead of the pose the forecast started from.
+    pose = next(o for o in inputs.odom if m.seconds_from_stamp(o.header.stamp) == t_end)
+    start = pose.pose.pose.position
+    assert math.hypot(msg.x[0] - start.x, msg.y[0] - start.y) < 15.0
+
+    model, _ = default_model()
+    window = inputs.window_until(t_end, 60)
+    assert window.ready, window.reason
+    future = np.tile(window.controls[-1], (1, 900, 1))
+    with torch.no_grad():
+        expected = model.forecast(torch.as_tensor(window.states[None]),
+                                  torch.as_tensor(window.controls[None]),
+                                  torch.as_tensor(future))[0].numpy()
+    scale = np.abs(expected).max(axis=0) + 1e-3
+    assert np.max(np.abs(hybrid - expected) / scale) < 2e-3
+
+
+def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, ros_node):
+    from hybrid_predictor_interfaces.msg import ControlPlan
+    from hybrid_predictor_interfaces.srv import Predict
+
+    predictor = start_pair(launcher)
+    client = ros_node.create_client(Predict, '/predictor/predict')
+    assert client.wait_for_service(timeout_sec=60)
+
+    def plan(rudder, n=900, shaft=90.0):
+        return ControlPlan(shaft_speed=[shaft] * n, rudder_port=[rudder] * n,
+                           rudder_stbd=[rudder] * n)
+
+    def call(plans):
+        future = client.call_async(Predict.Request(plans=plans))
+        assert spin_until(ros_node, future.done, 30), 'no response'
+        return future.result()
+
+    response = None
+    for _ in range(60):   # until the window has filled
+        response = call([plan(-0.1), plan(0.0), plan(0.1)])
+        if response.success:
+            break
+        assert 'no forecast' in response.message
+        spin_until(ros_node, lambda: False, 1.0)
+    assert response.success, response.message
+    assert len(response.forecasts) == 3
+    final_heading = [f.heading[-1] for f in response.forecasts]
+    # Positive rudder turns to port: ENU yaw grows (counter-clockwise) the most.
+    assert final_heading[2] > final_heading[1] > final_heading[0]
+
+    for bad, why in (([plan(0.0, n=899)], 'need 900'),
+                     ([plan(float('nan'))], 'is nan'),
+                     ([plan(0.0, shaft=1e6)], 'outside'),
+                     ([], 'send 1 to')):
+        answer = call(bad)
+        assert not answer.success and why in answer.message, answer.message
+        assert len(answer.forecasts) == 0
+    assert call([plan(0.0)]).success and predictor.alive()
+
+
+def test_bad_inputs_are_rejected_counted_and_the_node_keeps_serving(launcher, ros_node):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
+
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge import messages as m
+
+    forecasts, diagnostics, odom = [], [], []
+    ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 10)
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
+    ros_node.create_subscription(Odometry, '/vessel/odom', odom.append, 10)
+    predictor = start_pair(launcher)
+    assert spin_until(ros_node, lambda: forecasts, 90)
+
+    odom_pub = ros_node.create_publisher(Odometry, '/vessel/odom', 10)
+    joint_pub = ros_node.create_publisher(JointState, '/vessel/actuators', 10)
+    latest = odom[-1]
+    nan = Odometry()
+    nan.header.stamp = m.stamp_from_seconds(m.seconds_from_stamp(latest.header.stamp) + 0.5)
+    nan.twist.twist.linear.x = float('nan')
+    nan.pose.pose.orientation.w = 1.0
+    old = Odometry()
+    old.header.stamp = m.stamp_from_seconds(START + 1.0)
+    old.pose.pose.orientation.w = 1.0
+    for msg in (nan, old, latest):
+        odom_pub.publish(msg)
+    joint_pub.publish(JointState(name=['thruster'], position=[1.0]))
+
+    def counted():
+        values = {kv.key: kv.value for d in diagnostics[-1:] for s in d.status
+                  for kv in s.values}
+        return (int(values.get('rejected_non_finite', 0)) >= 1
+                and int(values.get('rejected_out_of_order', 0))
+                + int(values.get('rejected_duplicate', 0)) >= 2
+                and int(values.get('rejected_malformed', 0)) >= 1)
+
+    assert spin_until(ros_node, counted, 20), diagnostics[-1] if diagnostics else 'none'
+    count = len(forecasts)
+    assert spin_until(ros_node, lambda: len(forecasts) > count + 2, 30)
+    assert predictor.alive()
+    assert all(np.isfinite(f.hybrid).all() for f in forecasts)
+
+
+def test_an_incomplete_window_gives_a_clear_status_and_no_forecast(launcher, ros_node):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from nav_msgs.msg import Odometry
+
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge import messages as m
+
+    forecasts, diagnostics = [], []
+    ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 10)
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
+    launcher.start_node('hybrid_predictor', 'predictor')
+    pub = ros_node.create_publisher(Odometry, '/vessel/odom', 10)
+    assert spin_until(ros_node, lambda: diagnostics, 60)
+    now = ros_node.get_clock().now().nanoseconds * 1e-9
+    for k in range(5):   # states only, 5 s: no actuators, no wind, too short
+        msg = Odometry()
+        msg.header.stamp = m.stamp_from_seconds(now - 5 + k)
+        msg.pose.pose.orientation.w = 1.0
+        pub.publish(msg)
+        spin_until(ros_node, lambda: False, 0.2)
+
+    def explained():
+        status = diagnostics[-1].status[0]
+        return status.level == b'\x02' and 'no forecast' in status.message
+    assert spin_until(ros_node, explained, 15), diagnostics[-1].status[0].message
+    message = diagnostics[-1].status[0].message
+    assert 'no actuators received' in message and 'no wind received' in message
+    assert not forecasts

@@ -1,0 +1,97 @@
+"""hybrid_predictor.plans and .health: plan checks, the forecast track, diagnostics."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hybrid_predictor import health
+from hybrid_predictor.plans import (
+    ActuatorLimits,
+    PlanError,
+    bound_hit_fraction,
+    hold_latest,
+    plan_controls,
+    track,
+)
+
+LIMITS = ActuatorLimits(shaft_max=100.0, rudder_max=0.6)
+LATEST = np.array([90.0, 0.01, 0.02, 4.0, 0.0, 1.0])
+H = 5
+
+
+def good_plan(**override):
+    plan = {'shaft_speed': np.full(H, 80.0), 'rudder_port': np.linspace(0, 0.1, H),
+            'rudder_stbd': np.linspace(0, 0.1, H)}
+    plan.update(override)
+    return plan
+
+
+def test_actuator_plan_holds_the_latest_wind():
+    out = plan_controls(good_plan(), LATEST, H, LIMITS)
+    assert out.shape == (H, 6)
+    np.testing.assert_array_equal(out[:, 0], 80.0)
+    np.testing.assert_array_equal(out[:, 2], np.linspace(0, 0.1, H))
+    np.testing.assert_array_equal(out[:, 3:], np.tile(LATEST[3:], (H, 1)))
+
+
+def test_a_planned_wind_is_used_as_cos_sin_of_its_direction():
+    out = plan_controls(good_plan(wind_speed=np.full(H, 7.0),
+                                  wind_direction=np.full(H, -math.pi / 2)), LATEST, H, LIMITS)
+    np.testing.assert_allclose(out[0, 3:], [7.0, 0.0, -1.0], atol=1e-12)
+
+
+@pytest.mark.parametrize('override, message', [
+    ({'shaft_speed': np.full(H - 1, 80.0)}, 'shaft_speed has 4 entries, need 5'),
+    ({'rudder_port': np.array([0, 0, np.nan, 0, 0])}, 'rudder_port[2] is nan'),
+    ({'rudder_stbd': np.full(H, np.inf)}, 'rudder_stbd[0] is inf'),
+    ({'shaft_speed': np.full(H, 150.0)}, 'shaft_speed outside'),
+    ({'rudder_port': np.full(H, -0.7)}, 'rudder_port outside'),
+    ({'wind_speed': np.full(3, 1.0)}, 'wind_speed has 3 entries'),
+    ({'wind_speed': np.full(H, -1.0), 'wind_direction': np.zeros(H)}, 'wind_speed must be'),
+])
+def test_malformed_plans_are_refused_with_the_reason(override, message):
+    with pytest.raises(PlanError, match=message.replace('[', r'\[').replace(']', r'\]')):
+        plan_controls(good_plan(**override), LATEST, H, LIMITS, index=3)
+
+
+def test_hold_latest_repeats_the_last_controls():
+    out = hold_latest(LATEST, H)
+    assert out.shape == (1, H, 6) and (out[0] == LATEST).all()
+
+
+def test_track_is_the_metric_track_rotated_and_shifted_to_the_pose():
+    def positions(z):   # straight ahead at u, the metric's convention (heading 0 = north)
+        return np.stack([np.cumsum(z[..., 0]), np.zeros(z.shape[:-1])], axis=-1)
+
+    states = np.zeros((H, 5))
+    states[:, 0] = 2.0
+    north, east, heading = track(states, (100.0, 50.0, math.pi / 2), 1.0, positions)
+    np.testing.assert_allclose(north, 100.0, atol=1e-12)      # heading east
+    np.testing.assert_allclose(east, 50.0 + 2.0 * np.arange(1, H + 1))
+    np.testing.assert_allclose(heading, math.pi / 2)
+
+
+def test_bound_hits_count_corrections_at_the_bound():
+    physics = np.zeros((1, 4, 2))
+    hybrid = np.array([[[0.1, 0.0], [0.0995, 0.0], [0.05, 0.0], [-0.1, 2.0]]])
+    bound = np.array([0.1, np.inf])
+    assert bound_hit_fraction(hybrid, physics, bound) == pytest.approx(3 / 4)
+    assert bound_hit_fraction(hybrid, physics, np.array([np.inf, np.inf])) == 0.0
+
+
+def test_health_levels_follow_the_window_and_new_rejections():
+    h = health.Health()
+    level, message, _ = h.report({})
+    assert level == health.STALE and 'waiting' in message
+    h.record_window('incomplete', 'state gap of 4.0 s', 0.5, 1.0)
+    assert h.report({})[0] == health.ERROR
+    h.record_window('ok', '', 1.0, 0.1)
+    for ms in (5.0, 6.0, 7.0):
+        h.record_forecast(ms, 0.0)
+    level, _, values = h.report({'non_finite': 2})
+    assert level == health.WARN and values['rejected_non_finite'] == '2'
+    level, _, values = h.report({'non_finite': 2})
+    assert level == health.OK and values['forecast_latency_p50_ms'] == '6.00'
+    h.record_forecast(5.0, 0.5)
+    assert 'bound' in h.report({'non_finite': 2})[1]

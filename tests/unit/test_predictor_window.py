@@ -1,0 +1,123 @@
+"""hybrid_predictor.input_window: a clean model window from messy asynchronous inputs."""
+
+import math
+
+import numpy as np
+import pytest
+
+from hybrid_predictor.input_window import InputWindow
+
+W, DT = 60, 1.0
+
+
+def state_at(t):
+    # Smooth, known signals so interpolated values can be checked exactly.
+    return {'u': 5.0 + 0.01 * t, 'v': 0.1, 'p': 0.0, 'r': 0.01, 'phi': 0.02 * math.sin(t),
+            'psi': 0.01 * t, 'x': 5.0 * t, 'y': 0.0}
+
+
+def fill(window, t0, t1, state_rate=1.0, control_rate=1.0):
+    for t in np.arange(t0, t1 + 1e-9, 1.0 / state_rate):
+        window.push('state', float(t), state_at(float(t)))
+    for t in np.arange(t0, t1 + 1e-9, 1.0 / control_rate):
+        window.push('actuators', float(t), {'n': 90.0 + t, 'delta_port': 0.01,
+                                            'delta_stbd': 0.02})
+        window.push('wind', float(t), {'wind_speed': 3.0, 'wind_dir_cos': 1.0,
+                                       'wind_dir_sin': 0.0})
+
+
+def make():
+    return InputWindow(window=W, dt=DT, max_gap=2.5, max_age=5.0)
+
+
+def test_window_on_the_model_grid_from_10_hz_states_and_2_hz_controls():
+    window = make()
+    fill(window, 0.0, 100.05, state_rate=10.0, control_rate=2.0)
+    result = window.assemble(now=100.5)
+    assert result.ready and result.status == 'ok' and result.fill == 1.0
+    assert result.states.shape == (W, 5) and result.controls.shape == (W, 6)
+    grid = result.t_end - DT * np.arange(W - 1, -1, -1)
+    np.testing.assert_allclose(result.states[:, 0], 5.0 + 0.01 * grid, atol=1e-9)
+    # Zero-order hold: the newest actuator sample at or before each grid time.
+    np.testing.assert_allclose(result.controls[:, 0], 90.0 + np.floor(grid * 2) / 2)
+    assert result.pose[0] == pytest.approx(5.0 * result.t_end)
+
+
+def test_heading_is_unwrapped_across_the_pi_boundary():
+    window = make()
+    for k in range(70):
+        t = float(k)
+        psi = math.remainder(math.pi - 0.5 + 0.02 * k, 2 * math.pi)  # crosses +pi
+        window.push('state', t, dict(state_at(t), psi=psi))
+        window.push('actuators', t, {'n': 1.0, 'delta_port': 0.0, 'delta_stbd': 0.0})
+        window.push('wind', t, {'wind_speed': 1.0, 'wind_dir_cos': 1.0, 'wind_dir_sin': 0.0})
+    result = window.assemble(now=69.0)
+    assert result.pose[2] == pytest.approx(math.pi - 0.5 + 0.02 * 69)
+
+
+@pytest.mark.parametrize('t, values, counter', [
+    (50.0, {'u': float('nan')}, 'non_finite'),
+    (float('inf'), {}, 'non_finite'),
+    (100.0, {}, 'duplicate'),
+    (42.0, {}, 'out_of_order'),
+])
+def test_bad_samples_are_rejected_counted_and_never_used(t, values, counter):
+    window = make()
+    fill(window, 0.0, 100.0)
+    before = window.assemble(now=100.0)
+    reason = window.push('state', t, dict(state_at(100.0), **values))
+    assert reason
+    counts = window.streams['state'].counts
+    assert getattr(counts, counter) == 1 and counts.rejected == 1
+    after = window.assemble(now=100.0)
+    np.testing.assert_array_equal(before.states, after.states)
+
+
+def test_partial_actuator_samples_complete_from_the_last_one():
+    window = make()
+    fill(window, 0.0, 100.0)
+    assert window.push('actuators', 100.5, {'delta_port': 0.3}) is None
+    assert window.streams['actuators'].counts.incomplete == 0
+    first = InputWindow(W, DT, 2.5, 5.0)
+    assert 'lacks' in first.push('actuators', 0.0, {'delta_port': 0.3})
+
+
+def test_too_short_history_is_incomplete_with_the_fill_fraction():
+    window = make()
+    fill(window, 0.0, 29.0)
+    result = window.assemble(now=29.0)
+    assert not result.ready and result.status == 'incomplete'
+    assert 'does not reach back' in result.reason
+    assert result.fill == pytest.approx(30 / W)
+
+
+def test_a_gap_in_the_states_makes_the_window_incomplete():
+    window = make()
+    fill(window, 0.0, 100.0)
+    for t in (104.0, 105.0):     # 4 s of silence, more than max_gap
+        window.push('state', t, state_at(t))
+    result = window.assemble(now=105.0)
+    assert not result.ready and 'state gap of 4.0 s' in result.reason
+
+
+def test_silent_controls_make_the_window_incomplete():
+    window = make()
+    fill(window, 0.0, 100.0)
+    for t in range(101, 106):
+        window.push('state', float(t), state_at(float(t)))
+    result = window.assemble(now=105.0)
+    assert not result.ready and 'actuators silent' in result.reason
+
+
+def test_old_data_is_stale():
+    window = make()
+    fill(window, 0.0, 100.0)
+    result = window.assemble(now=120.0)
+    assert not result.ready and result.status == 'stale' and '20.0 s old' in result.reason
+
+
+def test_buffers_keep_only_what_a_window_needs():
+    window = make()
+    fill(window, 0.0, 2000.0, state_rate=10.0)
+    assert len(window.streams['state']._times) < 10 * (W + 5)
+    assert window.assemble(now=2000.0).ready
