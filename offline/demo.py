@@ -9,6 +9,12 @@ forecasts and to the simulator's noise-free state, lets forecasts mature (a 900-
 forecast needs 15 simulated minutes of truth), then prints the forecast-against-truth
 RMSE per state and the trajectory error, and writes a PNG of one forecast against
 what happened. Every process it starts is stopped on exit, also on Ctrl-C.
+
+The client acts as a controller would: it steers the vessel through /vessel/cmd along a
+plan of shaft-speed and rudder set-points (made by the simulator's human-like operator
+model with a seed of its own) and publishes the same plan on /vessel/control_plan, so
+each forecast follows the controls that are actually applied, as in the paper's
+evaluation. With --no-plan the predictor assumes the latest controls hold instead.
 """
 
 from __future__ import annotations
@@ -42,6 +48,8 @@ def parse_args(argv=None):
     parser.add_argument('--seed', type=int, default=11, help='simulation seed (default 11)')
     parser.add_argument('--evaluate-every', type=int, default=20, metavar='S',
                         help='evaluate one forecast every S simulated seconds (default 20)')
+    parser.add_argument('--no-plan', action='store_true',
+                        help='do not steer; forecasts assume the latest controls hold')
     parser.add_argument('--out', type=Path, default=REPO / 'out' / 'demo',
                         help='folder for the PNG and JSON (default out/demo)')
     args = parser.parse_args(argv)
@@ -75,17 +83,29 @@ def stop(process: subprocess.Popen) -> None:
             process.wait()
 
 
-def collect(seconds: float, speed_up: float, every: int, start_simulator):
+def make_plan(seed: int, seconds: int) -> np.ndarray:
+    """Return set-points (seconds, 3): n (rad/s), delta_port, delta_stbd (rad) per second."""
+    from vessel_physics.config import load_config
+    from vessel_physics.operator import Operator
+
+    operator = Operator([np.random.default_rng(seed)], load_config().operator)
+    return np.array([np.concatenate(operator.setpoints(float(t))) for t in range(seconds)])
+
+
+def collect(seconds: float, speed_up: float, every: int, start_simulator,
+            plan: np.ndarray | None = None):
     """
     Wait for the predictor, start the simulator, listen until `seconds` of truth arrived.
 
-    Returns (truth by simulated second, kept forecasts by their start second).
+    With a ``plan`` the client steers the vessel along it and announces it to the
+    predictor. Returns (truth by simulated second, kept forecasts by their start second).
     """
     from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry
     import rclpy
+    from sensor_msgs.msg import JointState
 
-    from hybrid_predictor_interfaces.msg import Forecast
+    from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
     from vessel_ros_bridge import messages as m
 
     rclpy.init()
@@ -93,8 +113,18 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator):
     truth: dict[int, tuple] = {}
     forecasts: dict[int, Forecast] = {}
 
+    command_pub = node.create_publisher(JointState, m.COMMAND_TOPIC, 10)
+    plan_pub = node.create_publisher(ControlPlan, '/vessel/control_plan', 10)
+
     def on_truth(msg):
         t = int(round(m.seconds_from_stamp(msg.header.stamp) - START))
+        if plan is not None and 0 <= t < len(plan):
+            # Set-points for the coming second; the simulator steps after this arrives.
+            command_pub.publish(m.joint_state_from_actuators(
+                dict(zip(('n', 'delta_port', 'delta_stbd'), plan[t], strict=True)),
+                msg.header.stamp))
+            if t % 10 == 0:
+                plan_pub.publish(plan_message)
         state = m.state_from_odometry(msg)
         truth[t] = (np.array([state[s] for s in STATES]), msg.pose.pose.position.x,
                     msg.pose.pose.position.y)
@@ -104,6 +134,11 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator):
         if t % every == 0:
             forecasts[t] = msg
 
+    if plan is not None:
+        plan_message = ControlPlan(shaft_speed=plan[:, 0].tolist(),
+                                   rudder_port=plan[:, 1].tolist(),
+                                   rudder_stbd=plan[:, 2].tolist())
+        plan_message.header.stamp = m.stamp_from_seconds(START)
     node.create_subscription(Odometry, m.ODOM_TRUE_TOPIC, on_truth, 100)
     node.create_subscription(Forecast, '/vessel/forecast', on_forecast, 10)
     ready = []
@@ -209,8 +244,9 @@ def main(argv=None) -> int:
     seconds = args.minutes * 60.0
     print(f'demo: simulator at {args.speed_up:g}x real time with the predictor; '
           f'{args.minutes:g} simulated minutes (about {seconds / args.speed_up:.0f} s)')
+    plan = None if args.no_plan else make_plan(args.seed + 1000, int(seconds) + 1000)
     processes = [start([executable('hybrid_predictor', 'predictor'), '--ros-args',
-                        '-p', 'use_sim_time:=true'])]
+                        '-p', 'use_sim_time:=true', '-p', f'plan_timeout:={seconds + 60}'])]
 
     def start_simulator():
         processes.append(start([
@@ -220,7 +256,7 @@ def main(argv=None) -> int:
 
     try:
         truth, forecasts = collect(seconds, args.speed_up, args.evaluate_every,
-                                   start_simulator)
+                                   start_simulator, plan)
     finally:
         for process in reversed(processes):
             stop(process)
@@ -229,8 +265,9 @@ def main(argv=None) -> int:
         print(f'demo: error: no forecast matured ({len(forecasts)} forecasts, {len(truth)} s '
               "of truth); see the nodes' output above", file=sys.stderr)
         return 1
+    how = 'latest controls held' if plan is None else 'following the applied control plan'
     print(f'demo: {figures["forecasts_evaluated"]} forecasts of {figures["horizon_steps"]} '
-          f'steps against the simulator\'s truth (model {figures["model_id"]})')
+          f'steps ({how}) against the simulator\'s truth (model {figures["model_id"]})')
     for state, unit in zip(STATES, UNITS, strict=True):
         print(f'  RMSE {state:>3}  {figures["rmse"][state]:.4f} {unit}')
     traj = figures['trajectory_error_m']
