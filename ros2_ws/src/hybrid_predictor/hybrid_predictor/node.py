@@ -12,6 +12,7 @@ ROS-free modules of this package; the numerics in ``hybrid_models``.
 
 from __future__ import annotations
 
+from array import array
 import math
 from pathlib import Path
 import sys
@@ -215,11 +216,12 @@ class PredictorNode(Node):
         msg.horizon = self.horizon
         msg.state_names = list(self.spec.state_names)
         msg.state_units = list(self.spec.state_units)
-        msg.hybrid = hybrid.ravel().tolist()
-        msg.physics = physics.ravel().tolist()
-        msg.residual_bound = self.engine.bound.tolist()
-        msg.x, msg.y = x_enu.tolist(), y_enu.tolist()
-        msg.heading = frames.heading_ned_to_enu(psi).tolist()
+        # Typed arrays: rclpy checks a list element by element, an array('d') at once.
+        msg.hybrid = array('d', hybrid.ravel())
+        msg.physics = array('d', physics.ravel())
+        msg.residual_bound = array('d', self.engine.bound)
+        msg.x, msg.y = array('d', x_enu), array('d', y_enu)
+        msg.heading = array('d', frames.heading_ned_to_enu(psi))
         msg.model_id = self.engine.model_id
         return msg
 
@@ -230,8 +232,10 @@ class PredictorNode(Node):
         path = PathMsg()
         path.header = forecast.header
         t0 = messages.seconds_from_stamp(forecast.header.stamp)
-        for k, (x, y, yaw) in enumerate(zip(forecast.x, forecast.y, forecast.heading,
-                                            strict=True)):
+        stride = self.p['path_stride']
+        last = len(forecast.x) - 1
+        for k in [*range(0, last, stride), last]:
+            x, y, yaw = forecast.x[k], forecast.y[k], forecast.heading[k]
             pose = PoseStamped()
             pose.header.frame_id = forecast.header.frame_id
             pose.header.stamp = messages.stamp_from_seconds(t0 + (k + 1) * forecast.step_period)

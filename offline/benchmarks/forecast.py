@@ -1,0 +1,225 @@
+"""
+Forecast speed of the default model, all figures measured in one run.
+
+- engine: p50/p99 latency of one 900-step forecast with the compiled engine (the code
+  the predictor node runs);
+- baseline: the same model as a naive per-step PyTorch eager loop
+  (``HybridModel.forecast``), and the speed-up over it;
+- bound: the FLOP count of one forecast divided by the float32 matrix-multiply rate
+  measured on this machine now, the time no implementation can beat;
+- throughput: forecasts per second for a batch of 64 plans;
+- node: from a state message being published to its forecast arriving, over DDS on
+  loopback through a predictor process (``--skip-node`` leaves it out).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+GOALS = {'engine_p50_ms': '<= 10', 'speedup_vs_naive': '>= 20',
+         'batch64_forecasts_per_s': '>= 1000', 'node_p99_ms': '<= 50'}
+
+
+def add_arguments(parser) -> None:
+    """Declare this suite's options."""
+    parser.add_argument('--model', type=Path, default=None,
+                        help="checkpoint (default: the predictor's embedded model)")
+    parser.add_argument('--horizon', type=int, default=900, help='forecast steps (900)')
+    parser.add_argument('--repeats', type=int, default=200,
+                        help='timed single forecasts (default 200)')
+    parser.add_argument('--naive-repeats', type=int, default=5,
+                        help='timed eager-loop forecasts (default 5)')
+    parser.add_argument('--node-samples', type=int, default=150,
+                        help='state messages timed through the node (default 150)')
+    parser.add_argument('--skip-node', action='store_true',
+                        help='leave out the end-to-end measurement through the node')
+
+
+def default_model() -> Path:
+    """Return the predictor package's embedded model."""
+    from ament_index_python.packages import get_package_share_directory
+
+    return Path(get_package_share_directory('hybrid_predictor')) / 'models' / 'default' / \
+        'model.safetensors'
+
+
+def inputs(window: int, horizon: int, batch: int, seed: int = 0):
+    """Return a plausible cruise window and `batch` plans of rudder/shaft variations."""
+    rng = np.random.default_rng(seed)
+    z = np.tile([6.0, 0.05, 0.0, 0.002, 0.01], (window, 1)) + rng.normal(0, 0.01, (window, 5))
+    c = np.tile([85.0, 0.01, 0.01, 3.0, 0.6, 0.8], (window, 1))
+    future = np.tile(c[-1], (batch, horizon, 1))
+    future[:, :, 0] += rng.uniform(-20, 20, (batch, 1))
+    future[:, :, 1:3] += rng.uniform(-0.1, 0.1, (batch, 1, 1))
+    return z, c, future
+
+
+def percentiles(seconds: list[float]) -> tuple[float, float]:
+    """Return (p50, p99) in ms."""
+    ms = np.asarray(seconds) * 1e3
+    return float(np.percentile(ms, 50)), float(np.percentile(ms, 99))
+
+
+def forecast_flops(model, window: int, horizon: int) -> float:
+    """Multiply-add FLOPs (2 per MAC) of the LSTMs and head for one forecast."""
+    def lstm(module, steps):
+        flops = 0
+        for k in range(module.num_layers):
+            n_in = getattr(module, f'weight_ih_l{k}').shape[1]
+            flops += 2 * 4 * module.hidden_size * (n_in + module.hidden_size)
+        return steps * flops
+
+    head = 2 * model.head.in_features * model.head.out_features * horizon
+    return float(lstm(model.init, window) + lstm(model.lstm, horizon) + head)
+
+
+def matmul_rate(size: int = 512, seconds: float = 1.0) -> float:
+    """Float32 GEMM rate of this machine now (FLOP/s), best of repeated products."""
+    a = np.random.default_rng(0).standard_normal((size, size)).astype(np.float32)
+    best, end = 0.0, time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        started = time.perf_counter()
+        a @ a
+        best = max(best, 2 * size ** 3 / (time.perf_counter() - started))
+    return best
+
+
+def node_latency(model: Path, samples: int) -> dict:
+    """Publish inputs to a predictor process; time state publish -> forecast received."""
+    from geometry_msgs.msg import Vector3Stamped
+    from nav_msgs.msg import Odometry
+    import rclpy
+    from sensor_msgs.msg import JointState
+
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge import messages as m
+
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
+               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(180 + os.getpid() % 40)))
+    os.environ.update(env)
+    exe = REPO / 'ros2_ws' / 'install' / 'hybrid_predictor' / 'lib' / 'hybrid_predictor' / \
+        'predictor'
+    process = subprocess.Popen([str(exe), '--ros-args', '-p', f'model_path:={model}',
+                                '-p', 'forecast_period:=0.0', '--log-level', 'warn'],
+                               env=env, start_new_session=True)
+    rclpy.init()
+    node = rclpy.create_node('bench_forecast_client')
+    pubs = {'odom': node.create_publisher(Odometry, m.ODOM_TOPIC, 10),
+            'act': node.create_publisher(JointState, m.ACTUATORS_TOPIC, 10),
+            'wind': node.create_publisher(Vector3Stamped, m.WIND_TOPIC, 10)}
+    sent, latencies = {}, []
+
+    def on_forecast(msg):
+        t = round(m.seconds_from_stamp(msg.header.stamp), 6)
+        if t in sent:
+            latencies.append(time.perf_counter() - sent.pop(t))
+
+    node.create_subscription(Forecast, '/vessel/forecast', on_forecast, 10)
+
+    def publish(t: float, timed: bool) -> None:
+        stamp = m.stamp_from_seconds(t)
+        state = {'u': 6.0, 'v': 0.05, 'p': 0.0, 'r': 0.002, 'phi': 0.01,
+                 'psi': 0.002 * t, 'x': 6.0 * t, 'y': 0.0}
+        pubs['act'].publish(m.joint_state_from_actuators(
+            {'n': 85.0, 'delta_port': 0.01, 'delta_stbd': 0.01}, stamp))
+        pubs['wind'].publish(m.wind_from_measurement(3.0, 0.6, 0.8, stamp, 'base_link'))
+        if timed:
+            sent[round(t, 6)] = time.perf_counter()
+        pubs['odom'].publish(m.odometry_from_state(state, stamp, 'odom', 'base_link'))
+
+    try:
+        deadline = time.monotonic() + 120
+        while node.count_subscribers(m.ODOM_TOPIC) == 0 and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.1)   # the predictor compiles first
+        time.sleep(1.0)
+        now = time.time()
+        for k in range(70):                          # the 60 s window, in one burst
+            publish(now - 70 + k, timed=False)
+            rclpy.spin_once(node, timeout_sec=0.005)
+        for _ in range(samples):                     # live samples, 10 per second
+            publish(time.time(), timed=True)
+            end = time.monotonic() + 0.1
+            while time.monotonic() < end:
+                rclpy.spin_once(node, timeout_sec=0.01)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        process.send_signal(2)
+        process.wait(15)
+    if not latencies:
+        return {'error': 'no forecast arrived from the predictor process'}
+    p50, p99 = percentiles(latencies)
+    return {'node_p50_ms': round(p50, 2), 'node_p99_ms': round(p99, 2),
+            'node_forecasts_timed': len(latencies), 'node_states_sent': samples}
+
+
+def run(args) -> dict:
+    """Measure everything; return the figures."""
+    import torch
+
+    from hybrid_models.engine import ForecastEngine
+
+    torch.set_num_threads(os.cpu_count() or 1)
+    path = args.model or default_model()
+    engine = ForecastEngine.from_checkpoint(path)
+    engine.model.set_threshold(0.15)
+    engine = ForecastEngine(engine.model, model_id=engine.model_id, config=engine.config)
+    model, window, horizon = engine.model, engine.window, args.horizon
+    z, c, future = inputs(window, horizon, batch=64)
+    engine.warm_up(horizon, window=window, max_batch=64)
+
+    single = []
+    for i in range(args.repeats):
+        started = time.perf_counter()
+        engine.forecast(z, c, future[i % 64:i % 64 + 1])
+        single.append(time.perf_counter() - started)
+    p50, p99 = percentiles(single)
+
+    naive = []
+    t = lambda a: torch.as_tensor(a[None] if a.ndim == 2 else a, dtype=torch.float32)  # noqa
+    with torch.no_grad():
+        for i in range(args.naive_repeats):
+            started = time.perf_counter()
+            model.forecast(t(z), t(c), t(future[i:i + 1]))
+            naive.append(time.perf_counter() - started)
+    naive_p50 = percentiles(naive)[0]
+
+    batch = []
+    for _ in range(10):
+        started = time.perf_counter()
+        engine.forecast(z, c, future)
+        batch.append(time.perf_counter() - started)
+    batch_s = float(np.median(batch))
+
+    flops = forecast_flops(model, window, horizon)
+    rate = matmul_rate()
+    result = {
+        'suite': 'forecast', 'model': engine.model_id, 'horizon': horizon, 'window': window,
+        'engine_p50_ms': round(p50, 3), 'engine_p99_ms': round(p99, 3),
+        'naive_eager_p50_ms': round(naive_p50, 1),
+        'speedup_vs_naive': round(naive_p50 / p50, 1),
+        'flops_per_forecast': flops,
+        'matmul_gflops_measured': round(rate / 1e9, 1),
+        'flop_lower_bound_ms': round(flops / rate * 1e3, 3),
+        'engine_vs_lower_bound': round(p50 / (flops / rate * 1e3), 1),
+        'batch64_ms': round(batch_s * 1e3, 1),
+        'batch64_forecasts_per_s': round(64 / batch_s, 1),
+    }
+    if not args.skip_node:
+        result.update(node_latency(path, args.node_samples))
+    met = {}
+    for key, goal in GOALS.items():
+        if key in result:
+            op, value = goal.split()
+            met[key] = result[key] <= float(value) if op == '<=' else result[key] >= float(value)
+    result['goals'] = GOALS
+    result['met'] = met
+    print(f'forecast bench: engine p50 {p50:.2f} ms, naive {naive_p50:.0f} ms', file=sys.stderr)
+    return result
