@@ -3,6 +3,7 @@
 import math
 
 import pytest
+
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.parameters import parse_specs
 
