@@ -217,3 +217,86 @@ def test_an_incomplete_window_gives_a_clear_status_and_no_forecast(launcher, ros
     message = diagnostics[-1].status[0].message
     assert 'no actuators received' in message and 'no wind received' in message
     assert not forecasts
+
+
+class Feeder:
+    """Publish the predictor's inputs from the test, stamped on the wall clock."""
+
+    def __init__(self, node):
+        from geometry_msgs.msg import Vector3Stamped
+        from nav_msgs.msg import Odometry
+        from sensor_msgs.msg import JointState
+
+        from vessel_ros_bridge import messages as m
+
+        self.m = m
+        self.odom = node.create_publisher(Odometry, m.ODOM_TOPIC, 200)
+        self.act = node.create_publisher(JointState, m.ACTUATORS_TOPIC, 200)
+        self.wind = node.create_publisher(Vector3Stamped, m.WIND_TOPIC, 200)
+
+    def sample(self, t):
+        m, stamp = self.m, self.m.stamp_from_seconds(t)
+        self.act.publish(m.joint_state_from_actuators(
+            {'n': 85.0, 'delta_port': 0.01, 'delta_stbd': 0.01}, stamp))
+        self.wind.publish(m.wind_from_measurement(3.0, 0.6, 0.8, stamp, 'base_link'))
+        state = {'u': 6.0, 'v': 0.05, 'p': 0.0, 'r': 0.002, 'phi': 0.01, 'psi': 0.002 * t,
+                 'x': 6.0 * t, 'y': 0.0}
+        self.odom.publish(m.odometry_from_state(state, stamp, 'odom', 'base_link'))
+
+
+def wait_for_predictor(launcher, ros_node, *params):
+    args = ['--ros-args']
+    for p in params:
+        args += ['-p', p]
+    process = launcher.start_node('hybrid_predictor', 'predictor', *args)
+    assert spin_until(ros_node, lambda: ros_node.count_subscribers('/vessel/odom') > 0 and
+                      ros_node.count_publishers('/vessel/forecast') > 0, 60)
+    return process
+
+
+def test_a_burst_is_read_through_and_the_latest_sample_forecast(launcher, ros_node):
+    import time
+
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge.messages import seconds_from_stamp
+
+    forecasts = []
+    ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
+    predictor = wait_for_predictor(launcher, ros_node)
+    feeder = Feeder(ros_node)
+    spin_until(ros_node, lambda: False, 1.0)
+    now = time.time()
+    stamps = [now - 120 + k for k in range(121)]   # two minutes of data at once
+    for t in stamps:
+        feeder.sample(t)
+    assert spin_until(ros_node, lambda: any(
+        abs(seconds_from_stamp(f.header.stamp) - stamps[-1]) < 1e-6 for f in forecasts), 20), \
+        'the newest sample of the burst was never forecast'
+    spin_until(ros_node, lambda: False, 1.0)
+    # Only fresh data is forecast: far fewer forecasts than messages in the burst.
+    assert len(forecasts) < len(stamps) / 4, len(forecasts)
+    assert predictor.alive()
+
+
+def test_stale_inputs_give_a_clear_status_and_no_forecast(launcher, ros_node):
+    import time
+
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    from hybrid_predictor_interfaces.msg import Forecast
+
+    forecasts, diagnostics = [], []
+    ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 10)
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
+    wait_for_predictor(launcher, ros_node)
+    feeder = Feeder(ros_node)
+    spin_until(ros_node, lambda: False, 1.0)
+    now = time.time()
+    for k in range(70):      # a complete window that ended 30 s ago
+        feeder.sample(now - 100 + k)
+    def stale():
+        return diagnostics and 'old' in diagnostics[-1].status[0].message
+    assert spin_until(ros_node, stale, 15), diagnostics[-1].status[0].message
+    status = diagnostics[-1].status[0]
+    assert status.level == b'\x02' and 'newest state is 3' in status.message
+    assert not forecasts

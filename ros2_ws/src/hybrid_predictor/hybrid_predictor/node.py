@@ -90,6 +90,7 @@ class PredictorNode(Node):
         self.last_forecast_t = -math.inf
         self.latest_plan: ControlPlan | None = None
         self.pending_ns: int | None = None   # arrival of a state awaiting its forecast
+        self.skipped_backlog = 0
         self.sync_timer = None
         started = time.perf_counter()
         self.engine.warm_up(self.horizon, window=window, max_batch=p['max_plans'])
@@ -101,9 +102,11 @@ class PredictorNode(Node):
         self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        self.create_subscription(Odometry, messages.ODOM_TOPIC, self._on_odom, 10)
-        self.create_subscription(JointState, messages.ACTUATORS_TOPIC, self._on_actuators, 10)
-        self.create_subscription(Vector3Stamped, messages.WIND_TOPIC, self._on_wind, 10)
+        depth = p['input_queue_depth']
+        self.create_subscription(Odometry, messages.ODOM_TOPIC, self._on_odom, depth)
+        self.create_subscription(JointState, messages.ACTUATORS_TOPIC, self._on_actuators,
+                                 depth)
+        self.create_subscription(Vector3Stamped, messages.WIND_TOPIC, self._on_wind, depth)
         self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10)
         self.create_service(Predict, '~/predict', self._on_predict)
         self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
@@ -124,9 +127,13 @@ class PredictorNode(Node):
         if t - self.last_forecast_t < self.p['forecast_period']:
             return
         received_ns = (info or {}).get('received_timestamp') or time.time_ns()
-        if (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']:
-            return  # a queued message: a newer one is on its way, forecast that one
         self.pending_ns = received_ns
+        if (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']:
+            # A message that waited in the queue: newer ones are probably behind it.
+            # Read on, and forecast once from the latest window when the queue is empty.
+            self.skipped_backlog += 1
+            self._arm_timer(self.p['backlog_skip'])
+            return
         self._forecast_when_synced()
 
     def _on_actuators(self, msg: JointState) -> None:
@@ -152,8 +159,12 @@ class PredictorNode(Node):
         if all((stream.latest_time or -math.inf) >= t_state
                for stream in self.window.streams.values()):
             self._forecast_pending()
-        elif self.sync_timer is None:
-            self.sync_timer = self.create_timer(self.p['sync_timeout'], self._forecast_pending,
+        else:
+            self._arm_timer(self.p['sync_timeout'])
+
+    def _arm_timer(self, seconds: float) -> None:
+        if self.sync_timer is None:
+            self.sync_timer = self.create_timer(seconds, self._forecast_pending,
                                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _forecast_pending(self) -> None:
@@ -283,6 +294,7 @@ class PredictorNode(Node):
                 value = getattr(counts, reason)
                 rejected[reason] = rejected.get(reason, 0) + value
         level, message, values = self.health.report(rejected)
+        values['states_skipped_as_backlog'] = str(self.skipped_backlog)
         status = DiagnosticStatus(level=bytes([level]), name=f'{self.get_name()}: forecast',
                                   message=message, hardware_id=self.engine.model_id)
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
