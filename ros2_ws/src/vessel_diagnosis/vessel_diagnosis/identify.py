@@ -1,0 +1,503 @@
+"""
+Name the missing physics: select candidates, refit them, keep those that predict better.
+
+Rounds. Each round builds the design (``design.build_design``) at the physics found so
+far, selects candidates by lasso-BIC with block-bootstrap inclusion probabilities
+(``selection.BootstrapLasso``; bootstrap blocks stay within their run) and adds those
+included at least ``inclusion_threshold`` of the time. The coefficients of all terms
+found are then refitted by Gauss-Newton on the free-run residuals (the effects are
+nonlinear in a current of 1 m/s or a missing wind load), and the next round looks again
+at what is left. It stops when a round adds nothing.
+
+Pruning. A term stays only if leaving it out makes held-out predictions worse by at least
+``min_improvement`` for some state: bootstrap blocks alternate between folds, the
+coefficients are refitted on one fold and predict the other; the weakest term goes first,
+the rest are refitted, and again until every term earns its place. Of two candidates
+that explain the same thing only one survives this, and the other is reported as an
+alias: a candidate outside the model that explains at least ``alias_share`` of what a
+kept term explains cannot be told apart from it by these recordings.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vessel_diagnosis.design import (
+    STATES,
+    Column,
+    Design,
+    Segments,
+    build_design,
+    candidate_columns,
+)
+from vessel_diagnosis.library import Library
+from vessel_diagnosis.selection import (
+    BlockStats,
+    BootstrapLasso,
+    effective_sample_ratio,
+    least_squares,
+    rss,
+)
+from vessel_physics.augmented import Physics
+from vessel_physics.errors import ConfigError
+
+CURRENT = 'current'
+MAX_HALVINGS = 3   # step halvings of a Gauss-Newton update that made the fit worse
+
+
+@dataclass
+class Point:
+    """Coefficients found so far: global candidate -> value, run id -> current (N, E)."""
+
+    theta: dict[str, float] = field(default_factory=dict)
+    currents: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def physics(self, nominal: Physics, library: Library) -> Physics:
+        """Return the nominal physics with the global coefficients applied."""
+        return library.apply(nominal, self.theta) if self.theta else nominal
+
+    def moved(self, columns: Sequence[Column], delta: np.ndarray, fraction: float = 1.0
+              ) -> Point:
+        """Return a point moved by ``fraction * delta`` along ``columns``."""
+        theta = dict(self.theta)
+        currents = {k: v.copy() for k, v in self.currents.items()}
+        for col, d in zip(columns, delta, strict=True):
+            if col.per_run:
+                vec = currents.setdefault(col.run, np.zeros(2))
+                vec[0 if col.component == 'north' else 1] += fraction * d
+            else:
+                theta[col.candidate] = theta.get(col.candidate, 0.0) + fraction * d
+        return Point(theta, currents)
+
+    def without(self, candidate: str) -> Point:
+        """Return the point with one candidate (or the current) removed."""
+        if candidate == CURRENT:
+            return Point(dict(self.theta), {})
+        return Point({k: v for k, v in self.theta.items() if k != candidate},
+                     {k: v.copy() for k, v in self.currents.items()})
+
+    def values(self, columns: Sequence[Column]) -> np.ndarray:
+        """Return the current coefficient of every column."""
+        out = []
+        for col in columns:
+            if col.per_run:
+                vec = self.currents.get(col.run, np.zeros(2))
+                out.append(vec[0 if col.component == 'north' else 1])
+            else:
+                out.append(self.theta.get(col.candidate, 0.0))
+        return np.array(out)
+
+
+@dataclass
+class Selected:
+    """A candidate the selection took in, with how often and in which round."""
+
+    candidate: str
+    inclusion_probability: float
+    round: int
+    per_run_probability: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class Alias:
+    """A candidate outside the model that explains much of what a kept term explains."""
+
+    candidate: str
+    category: str
+    share: float          # its explained sum of squares / the kept term's
+    correlation: float    # of the two weighted columns
+
+
+@dataclass
+class Identification:
+    """What the identification found (before turning it into findings)."""
+
+    point: Point
+    physics: Physics
+    selected: dict[str, Selected]
+    kept: list[str]
+    improvement: dict[str, dict[str, float]]   # candidate -> state -> held-out RMSE gain
+    ci95: dict[str, tuple[float, float]]
+    current_ci95: dict[str, np.ndarray]         # run -> (2, 2) [[n_lo, n_hi], [e_lo, e_hi]]
+    current_speed_ci95: tuple[float, float] | None
+    aliases: dict[str, list[Alias]]
+    pruned: dict[str, str]                      # candidate -> why it was dropped
+    identifiability: dict[str, dict]            # candidate -> marginal/joint SE vs scale
+    rounds: list[dict]
+
+
+def _strata(design: Design, segments: Segments) -> np.ndarray:
+    return np.repeat(segments.run_index, design.y.shape[1] * design.y.shape[2])
+
+
+def _candidate_probability(columns: Sequence[Column], pi: np.ndarray, selected: np.ndarray
+                           ) -> tuple[dict[str, float], dict[str, float]]:
+    """Inclusion probability per candidate; a current's is the mean over runs of P(N or E)."""
+    out: dict[str, float] = {}
+    per_run: dict[str, float] = {}
+    runs: dict[str, list[int]] = {}
+    for k, col in enumerate(columns):
+        if col.per_run:
+            runs.setdefault(col.run, []).append(k)
+        else:
+            out[col.candidate] = float(pi[k])
+    for run, idx in runs.items():
+        per_run[run] = float(selected[:, idx].any(axis=1).mean()) if len(selected) else 0.0
+    if runs:
+        out[CURRENT] = float(np.mean(list(per_run.values())))
+    return out, per_run
+
+
+class Identifier:
+    """Runs the rounds, refits and pruning of the module docstring on one set of runs."""
+
+    def __init__(self, nominal: Physics, library: Library, settings,
+                 progress: Callable[[str], None] | None = None):
+        self.nominal = nominal
+        self.library = library
+        self.settings = settings
+        self.say = progress or (lambda message: None)
+
+    # ------------------------------------------------------------------ helpers
+    def _columns(self, runs: Sequence[str], names: Sequence[str] | None = None):
+        return candidate_columns(runs, self.library, names)
+
+    def _design(self, segments: Segments, point: Point, columns) -> Design:
+        return build_design(segments, point.physics(self.nominal, self.library), self.library,
+                            point.currents, columns, self.settings)
+
+    def _neff_ratio(self, design: Design) -> float:
+        X, y, _ = design.stacked()
+        norm = np.sqrt(np.mean(X ** 2, axis=0))
+        keep = norm > 0
+        if keep.any():
+            coef = np.linalg.lstsq(X[:, keep] / norm[keep], y, rcond=None)[0]
+            y = y - (X[:, keep] / norm[keep]) @ coef
+        series = y.reshape(design.y.shape).reshape(-1, design.y.shape[-1])
+        return effective_sample_ratio(series)
+
+    # ------------------------------------------------------------------ steps
+    def select(self, segments: Segments, point: Point, round_index: int):
+        """Run one selection round over the whole library at ``point``."""
+        cfg = self.settings.selection
+        columns = self._columns(segments.run_ids)
+        design = self._design(segments, point, columns)
+        X, y, blocks = design.stacked()
+        n_per_run = 2 * len(segments.run_ids) if self.library.has_current else 0
+        model = BootstrapLasso(cfg.bootstrap, cfg.inclusion_threshold, self._neff_ratio(design),
+                               cfg.max_terms + n_per_run, cfg.seed + round_index)
+        model.fit(X, y, blocks, design.names, _strata(design, segments))
+        probability, per_run = _candidate_probability(columns, model.inclusion_probability_,
+                                                      model.selected_)
+        return design, model, probability, per_run
+
+    def refit(self, segments: Segments, point: Point, names: Sequence[str]
+              ) -> tuple[Point, Design]:
+        """
+        Refit the coefficients of ``names`` (and per-run currents) by Gauss-Newton.
+
+        Returns the new point and the design of ``names`` at it.
+        """
+        columns = self._columns(segments.run_ids, names)
+        design = self._design(segments, point, columns)
+        for _ in range(self.settings.selection.gauss_newton_iterations):
+            X, y, _ = design.stacked()
+            before = float(y @ y)
+            norm = np.sqrt(np.mean(X ** 2, axis=0))
+            norm = np.where(norm > 0, norm, 1.0)
+            G = (X / norm).T @ (X / norm)
+            delta = least_squares(G, (X / norm).T @ y, np.ones(len(columns), bool)) / norm
+            accepted = None
+            for halving in range(MAX_HALVINGS + 1):
+                trial = point.moved(columns, delta, 0.5 ** halving)
+                try:
+                    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+                        trial_design = self._design(segments, trial, columns)
+                except ConfigError:      # a step out of a parameter's valid range
+                    continue
+                # The weights (1/sigma) change with the point; compare at the old weights.
+                scaled = (trial_design.y / design.sigma).reshape(-1)
+                score = float(scaled @ scaled)
+                if np.isfinite(score) and np.isfinite(trial_design.X).all() and score <= before:
+                    accepted = trial, trial_design
+                    break
+            if accepted is None:     # no step along delta improves the fit: converged
+                break
+            point, design = accepted
+            if np.max(np.abs(delta) / np.maximum(design.scales, 1e-300)) < 1e-3:
+                break
+        return point, design
+
+    @staticmethod
+    def _folds(design: Design, segments: Segments, folds: int) -> np.ndarray:
+        """Fold of every segment: the blocks of each run alternate between folds."""
+        first: dict[int, int] = {}
+        for b, r in zip(design.blocks, segments.run_index, strict=True):
+            first.setdefault(int(r), int(b))
+        return np.array([(b - first[int(r)]) % folds for b, r in
+                         zip(design.blocks, segments.run_index, strict=True)])
+
+    def held_out_gain(self, design: Design, segments: Segments, point: Point,
+                      names: Sequence[str], dropped: Sequence[str] = ()
+                      ) -> dict[str, dict[str, float]]:
+        """
+        Return each term's held-out RMSE gain per state: how much worse predictions get without it.
+
+        ``design`` has the columns of ``names`` and ``dropped`` at ``point``; terms in
+        ``dropped`` are taken out (their effect removed, linearized) before anything else.
+        Cross-fitting over alternating blocks of each run.
+        """
+        columns = design.columns
+        folds = self.settings.validation.folds
+        fold = self._folds(design, segments, folds)
+        w = 1.0 / design.sigma
+        theta = point.values(columns)
+        groups = {n: [k for k, c in enumerate(columns) if c.candidate == n]
+                  for n in list(names) + list(dropped)}
+        base_y = design.y.copy()
+        base_keep = np.ones(len(columns), bool)
+        for name in dropped:
+            idx = groups[name]
+            base_y += np.tensordot(design.X[..., idx], theta[idx], axes=([-1], [0]))
+            base_keep[idx] = False
+
+        def fitted_residual(drop: str | None) -> np.ndarray:
+            y = base_y.copy()
+            keep = base_keep.copy()
+            if drop is not None:
+                idx = groups[drop]
+                y += np.tensordot(design.X[..., idx], theta[idx], axes=([-1], [0]))
+                keep[idx] = False
+            out = np.empty_like(y)
+            for f in range(folds):
+                train, test = fold != f, fold == f
+                Xw = (design.X[train] * w[None, None, :, None]).reshape(-1, len(columns))
+                yw = (y[train] * w[None, None, :]).reshape(-1)
+                norm = np.sqrt(np.mean(Xw ** 2, axis=0))
+                norm = np.where(norm > 0, norm, 1.0)
+                coef = least_squares((Xw / norm).T @ (Xw / norm), (Xw / norm).T @ yw, keep)
+                out[test] = y[test] - np.tensordot(design.X[test], coef / norm,
+                                                   axes=([-1], [0]))
+            return out
+
+        full = np.sqrt(np.mean(fitted_residual(None) ** 2, axis=(0, 1)))
+        gains = {}
+        for name in names:
+            without = np.sqrt(np.mean(fitted_residual(name) ** 2, axis=(0, 1)))
+            gains[name] = {s: float((without[i] - full[i]) / without[i]) if without[i] > 0
+                           else 0.0 for i, s in enumerate(STATES)}
+        return gains
+
+    def prune(self, design: Design, segments: Segments, point: Point, names: Sequence[str]):
+        """Backward elimination on the linearized model; returns kept, gains, pruned."""
+        kept, dropped = list(names), []
+        pruned: dict[str, str] = {}
+        min_gain = self.settings.validation.min_improvement
+        gains: dict[str, dict[str, float]] = {}
+        while kept:
+            gains = self.held_out_gain(design, segments, point, kept, dropped)
+            best = {n: max(g.values()) for n, g in gains.items()}
+            weakest = min(best, key=best.get)
+            if best[weakest] >= min_gain:
+                break
+            pruned[weakest] = (f'leaving it out changes held-out predictions by '
+                               f'{100 * best[weakest]:.1f} % at most (< '
+                               f'{100 * min_gain:.0f} %)')
+            self.say(f'  pruned {weakest}: {pruned[weakest]}')
+            kept.remove(weakest)
+            dropped.append(weakest)
+        return kept, (gains if kept else {}), pruned
+
+    def implausible(self, point: Point, names: Sequence[str]) -> dict[str, str]:
+        """Parameter corrections that flip a parameter's sign or exceed the allowed change."""
+        limit = self.settings.validation.max_parameter_change
+        out = {}
+        for name in names:
+            cand = self.library.by_name[name]
+            if cand.kind != 'parameter':
+                continue
+            nominal = getattr(self.nominal.params, cand.target)
+            change = point.theta.get(name, 0.0)
+            if nominal != 0 and (np.sign(nominal + change) != np.sign(nominal)
+                                 or abs(change) > limit * abs(nominal)):
+                out[name] = (f'implausible: {cand.target} would go from {nominal:.4g} to '
+                             f'{nominal + change:.4g} (a sign change or more than '
+                             f'{limit:g} times its nominal size away)')
+        return out
+
+    def intervals(self, design: Design, segments: Segments, point: Point):
+        """Block-bootstrap refits (B, K) of the design's coefficients around ``point``."""
+        cfg = self.settings.selection
+        X, y, blocks = design.stacked()
+        norm = np.sqrt(np.mean(X ** 2, axis=0))
+        norm = np.where(norm > 0, norm, 1.0)
+        stats = BlockStats(X / norm, y, blocks, _strata(design, segments))
+        rng = np.random.default_rng(cfg.seed)
+        support = np.ones(X.shape[1], bool)
+        boot = np.array([least_squares(*stats.total(stats.resample(rng))[:2], support)
+                         for _ in range(cfg.bootstrap)]) / norm
+        return point.values(design.columns)[None, :] + boot
+
+    def aliases(self, segments: Segments, point: Point, names: Sequence[str]
+                ) -> dict[str, list[Alias]]:
+        """Candidates outside the model that explain most of what a kept term explains."""
+        cfg = self.settings.collinearity
+        globals_in = [n for n in names if n != CURRENT]
+        others = [c.name for c in self.library.global_candidates if c.name not in names]
+        if not globals_in or not others:
+            return {n: [] for n in names}
+        columns = self._columns(segments.run_ids, list(names) + others)
+        design = self._design(segments, point, columns)
+        X, y, _ = design.stacked()
+        norm = np.sqrt(np.mean(X ** 2, axis=0))
+        norm = np.where(norm > 0, norm, 1.0)
+        Xn = X / norm
+        G, Xy, yy = Xn.T @ Xn, Xn.T @ y, float(y @ y)
+        index = {c.name: k for k, c in enumerate(columns)}
+        model_idx = [k for k, c in enumerate(columns) if c.candidate in names]
+        theta = point.values(columns) * norm
+        out: dict[str, list[Alias]] = {n: [] for n in names}
+        for name in globals_in:
+            k = index[name]
+            # Residual with the term taken out again: what it explains is measured on it.
+            Xy_k = Xy + G[:, k] * theta[k]
+            yy_k = yy + 2 * theta[k] * Xy[k] + theta[k] ** 2 * G[k, k]
+            rest = np.zeros(len(columns), bool)
+            rest[model_idx] = True
+            rest[k] = False
+            base_rss = rss(G, Xy_k, yy_k, least_squares(G, Xy_k, rest))
+            with_k = rest.copy()
+            with_k[k] = True
+            explained = base_rss - rss(G, Xy_k, yy_k, least_squares(G, Xy_k, with_k))
+            if explained <= 0:
+                continue
+            for other in others:
+                j = index[other]
+                corr = G[k, j] / np.sqrt(G[k, k] * G[j, j]) if G[j, j] > 0 else 0.0
+                if abs(corr) < cfg.alias_min_correlation:
+                    continue
+                swap = rest.copy()
+                swap[j] = True
+                share = (base_rss - rss(G, Xy_k, yy_k, least_squares(G, Xy_k, swap))) / explained
+                if share >= cfg.alias_share:
+                    cand = self.library.by_name[other]
+                    out[name].append(Alias(other, cand.category, float(share), float(corr)))
+            out[name].sort(key=lambda a: -a.share)
+        return out
+
+    def identifiability(self, design: Design, ratio: float) -> dict[str, dict]:
+        """
+        Return the standard error of each coefficient against its relevant scale.
+
+        Alone (``excited``) and fitted together with every candidate of the OTHER
+        categories (``separable``). Candidates of one category are meant to overlap
+        (Isherwood's wind and the generic wind shapes); what the recordings must do is keep
+        categories apart.
+        """
+        X, y, _ = design.stacked()
+        n_eff = max(len(y) * ratio, 1.0)
+        sigma = float(np.sqrt(np.mean(y ** 2)))
+        norm2 = np.sum(X ** 2, axis=0)
+        norm = np.sqrt(np.where(norm2 > 0, norm2, 1.0))
+        G = (X / norm).T @ (X / norm)
+        inflate = sigma * np.sqrt(len(y) / n_eff)
+        categories = [self.library.by_name[c.candidate].category for c in design.columns]
+        out: dict[str, dict] = {}
+        limit = self.settings.excitation.identifiable_se
+        for k, col in enumerate(design.columns):
+            if norm2[k] > 0:
+                marginal = inflate / np.sqrt(norm2[k])
+                idx = [k] + [j for j in range(len(categories)) if categories[j] != categories[k]
+                             and norm2[j] > 0]
+                inv = np.linalg.pinv(G[np.ix_(idx, idx)], rcond=1e-12, hermitian=True)
+                joint = inflate * np.sqrt(max(inv[0, 0], 0.0)) / norm[k]
+            else:
+                marginal = joint = np.inf
+            entry = out.setdefault(col.candidate, {'scale': float(design.scales[k]),
+                                                   'marginal_se': 0.0, 'joint_se': 0.0})
+            entry['marginal_se'] = max(entry['marginal_se'], float(marginal))
+            entry['joint_se'] = max(entry['joint_se'], float(joint))
+        for entry in out.values():
+            entry['excited'] = bool(entry['marginal_se'] <= limit * entry['scale'])
+            entry['separable'] = bool(entry['joint_se'] <= limit * entry['scale'])
+        return out
+
+    # ------------------------------------------------------------------ the whole
+    def run(self, segments: Segments) -> Identification:
+        """Identify on the segments of the diagnosis runs."""
+        cfg = self.settings.selection
+        point = Point()
+        kept: list[str] = []
+        selected: dict[str, Selected] = {}
+        rounds: list[dict] = []
+        identifiability: dict[str, dict] = {}
+        for r in range(cfg.rounds):
+            self.say(f'selection round {r + 1}: {len(self.library.candidates)} candidates, '
+                     f'{cfg.bootstrap} bootstrap replicates')
+            design, model, probability, per_run = self.select(segments, point, r)
+            # Judged on the latest round: its residual no longer holds the effects found,
+            # which would otherwise make every candidate look unidentifiable.
+            identifiability = self.identifiability(design, model.neff_ratio)
+            new = [n for n, p in probability.items() if p >= cfg.inclusion_threshold
+                   and n not in kept]
+            rounds.append({'round': r + 1, 'added': new,
+                           'inclusion_probability': {n: p for n, p in probability.items()
+                                                     if p >= 0.05},
+                           'effective_sample_ratio': model.neff_ratio})
+            for n in new:
+                selected[n] = Selected(n, probability[n], r + 1,
+                                       per_run if n == CURRENT else {})
+            if not new:
+                break
+            kept += new
+            self.say(f'  added {", ".join(new)}; refitting {len(kept)} terms')
+            point, design = self.refit(segments, point, kept)
+        pruned: dict[str, str] = {}
+        gains: dict[str, dict[str, float]] = {}
+        while kept:
+            design = self._design(segments, point, self._columns(segments.run_ids, kept))
+            survivors, gains, dropped = self.prune(design, segments, point, kept)
+            pruned.update(dropped)
+            if survivors != kept:
+                for name in dropped:
+                    point = point.without(name)
+                kept = survivors
+                if kept:
+                    point, design = self.refit(segments, point, kept)
+            implausible = self.implausible(point, kept)
+            if not implausible:
+                break
+            for name, why in implausible.items():
+                self.say(f'  pruned {name}: {why}')
+                pruned[name] = why
+                kept.remove(name)
+                point = point.without(name)
+            if kept:
+                point, design = self.refit(segments, point, kept)
+        ci95: dict[str, tuple[float, float]] = {}
+        current_ci: dict[str, np.ndarray] = {}
+        speed_ci = None
+        aliases: dict[str, list[Alias]] = {}
+        if kept:
+            columns = design.columns
+            boot = self.intervals(design, segments, point)
+            for name in kept:
+                idx = [k for k, c in enumerate(columns) if c.candidate == name]
+                if name == CURRENT:
+                    for k in idx:
+                        col = columns[k]
+                        ci = current_ci.setdefault(col.run, np.zeros((2, 2)))
+                        ci[0 if col.component == 'north' else 1] = np.percentile(
+                            boot[:, k], [2.5, 97.5])
+                    speeds = np.sqrt(np.mean(boot[:, idx] ** 2, axis=1) * 2.0)
+                    speed_ci = tuple(float(v) for v in np.percentile(speeds, [2.5, 97.5]))
+                else:
+                    ci95[name] = tuple(float(v) for v in np.percentile(boot[:, idx[0]],
+                                                                       [2.5, 97.5]))
+            aliases = self.aliases(segments, point, kept)
+        return Identification(point, point.physics(self.nominal, self.library), selected, kept,
+                              gains, ci95, current_ci, speed_ci, aliases, pruned,
+                              identifiability, rounds)

@@ -1,0 +1,286 @@
+"""
+Locate the mismatch: which states and DOFs, in which regimes and time windows.
+
+Residuals of the nominal physics on the diagnosis runs:
+
+- one-step: z_k+1 measured minus predicted from the measured z_k (``Predictor.one_step``);
+- multistep: measured minus free-run prediction ``horizon`` samples after a measured start;
+- generalized force: the one-step velocity residual as the force that would explain it,
+  M dnu / dt (N, N m about CO, FRD), low-passed (zero-phase) to remove the wave-frequency
+  forcing that the recordings do not measure.
+
+Regime variables per sample: speed u (m/s), turn rate r (deg/s), apparent wind angle
+gamma_r (deg, where the apparent wind comes from, + starboard) and speed (m/s), sea
+state (significant wave height from the recordings' metadata when every run has it, else
+a roll-motion proxy: the rolling standard deviation of roll minus its 60-s mean, deg) and
+heading (deg from north). Maps bin each residual against each regime variable (bin mean
+with a 95 % interval from the effective sample size); the correlation ratio eta^2 (the
+share of the residual's variance the bins explain) ranks how strongly a residual depends
+on a regime. Heading also gets eta^2 within runs, because a current's signature (a
+first harmonic in heading) changes phase from run to run and cancels when pooled.
+
+Time windows of ``window_s`` are flagged where the mean force residual of a DOF is
+``window_flag`` standard errors from zero and larger than the DOF's force floor.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import butter, sosfiltfilt
+
+from vessel_diagnosis.design import STATES
+from vessel_diagnosis.predict import Predictor
+from vessel_diagnosis.recordings import Run
+from vessel_diagnosis.selection import effective_sample_ratio
+from vessel_physics.augmented import Physics
+from vessel_physics.mass import mass_matrix
+
+DOF_NAMES = ('X', 'Y', 'K', 'N')
+DOF_UNITS = ('N', 'N', 'N m', 'N m')
+STATE_UNITS = ('m/s', 'm/s', 'rad/s', 'rad/s', 'rad')
+REGIMES = {
+    'speed': 'speed u (m/s)',
+    'turn_rate': 'turn rate r (deg/s)',
+    'wind_angle': 'apparent wind angle (deg, + starboard)',
+    'wind_speed': 'apparent wind speed (m/s)',
+    'sea_state': 'sea state (metadata Hs, else a roll-motion proxy)',
+    'heading': 'heading (deg from north)',
+}
+ROLL_MEAN_S = 60.0   # roll is compared with its own running mean over this span (proxy)
+
+
+def lowpass_runs(x: np.ndarray, run_index: np.ndarray, period_s: float, dt: float,
+                 order: int) -> np.ndarray:
+    """Zero-phase Butterworth low-pass (cut-off 1/period_s) along axis 0, run by run."""
+    sos = butter(order, 2.0 * dt / period_s, output='sos')   # normalized to Nyquist
+    out = np.empty_like(x)
+    for i in np.unique(run_index):
+        rows = run_index == i
+        pad = min(3 * (2 * len(sos) + 1), int(rows.sum()) - 1)
+        out[rows] = sosfiltfilt(sos, x[rows], axis=0, padlen=pad)
+    return out
+
+
+@dataclass
+class Residuals:
+    """Nominal residuals and regimes of all diagnosis runs (rows = sample pairs)."""
+
+    one_step: np.ndarray      # (n, 5) measured minus one-step prediction
+    force: np.ndarray         # (n, 4) low-passed generalized force residual
+    regimes: dict[str, np.ndarray]   # name -> (n,)
+    run_index: np.ndarray     # (n,)
+    time: np.ndarray          # (n,) s since the run's start
+    multistep: np.ndarray     # (m, 5) free-run residual at the horizon
+    multistep_regimes: dict[str, np.ndarray]
+    multistep_run: np.ndarray  # (m,)
+    sea_state_label: str
+    run_ids: tuple[str, ...]
+
+    @property
+    def sea_state_axis(self) -> str:
+        """Return a short axis label for the sea-state regime."""
+        return ('sea state Hs (m)' if self.sea_state_label.startswith('significant')
+                else 'sea state, roll proxy (deg)')
+
+
+def sea_state(runs: Sequence[Run], window_s: float) -> tuple[list[np.ndarray], str]:
+    """Per-sample sea state of each run: metadata Hs (m) when all runs have it, else proxy."""
+    if all('wave_hs_m' in r.info for r in runs):
+        return ([np.full(r.length, float(r.info['wave_hs_m'])) for r in runs],
+                "significant wave height Hs (m, from the recordings' metadata)")
+    out = []
+    for run in runs:
+        n_mean = max(3, int(round(ROLL_MEAN_S / run.dt)) | 1)
+        n_std = max(3, int(round(window_s / run.dt)) | 1)
+        phi = run.z[:, 4]
+        kernel = np.ones(n_mean) / n_mean
+        wave = phi - np.convolve(np.pad(phi, n_mean // 2, mode='edge'), kernel, 'valid')
+        sq = np.convolve(np.pad(wave ** 2, n_std // 2, mode='edge'), np.ones(n_std) / n_std,
+                         'valid')
+        out.append(np.degrees(np.sqrt(sq)))
+    return out, 'roll-motion sea-state proxy (deg, rolling std of roll about its 60-s mean)'
+
+
+def regimes_of(run: Run, rows: np.ndarray, sea: np.ndarray) -> dict[str, np.ndarray]:
+    """Regime variables at the sample indices ``rows`` of a run."""
+    z, c = run.z[rows], run.c[rows]
+    from_x = c[:, 3] * c[:, 4] + z[:, 0]
+    from_y = c[:, 3] * c[:, 5] + z[:, 1]
+    return {
+        'speed': z[:, 0],
+        'turn_rate': np.degrees(z[:, 3]),
+        'wind_angle': np.degrees(np.arctan2(from_y, from_x)),
+        'wind_speed': np.hypot(from_x, from_y),
+        'sea_state': sea[rows],
+        'heading': np.degrees(np.mod(run.psi[rows], 2 * np.pi)),
+    }
+
+
+def compute_residuals(runs: Sequence[Run], physics: Physics, settings) -> Residuals:
+    """Nominal one-step, force and multistep residuals with their regimes."""
+    dt = runs[0].dt
+    predictor = Predictor(physics, dt, settings.prediction.substeps)
+    seas, label = sea_state(runs, settings.locate.sea_state_window_s)
+    one, reg, run_idx, time = [], [], [], []
+    for i, run in enumerate(runs):
+        pred = predictor.one_step(run.z[:-1], run.psi[:-1], run.c[:-1], run.c[1:])
+        one.append(run.z[1:] - pred)
+        rows = np.arange(run.length - 1)
+        reg.append(regimes_of(run, rows, seas[i]))
+        run_idx.append(np.full(len(rows), i))
+        time.append(run.t[:-1])
+    one_step = np.concatenate(one)
+    run_index = np.concatenate(run_idx)
+    force = (one_step[:, :4] / dt) @ mass_matrix(physics.params).T
+    res = settings.residuals
+    force = lowpass_runs(force, run_index, res.lowpass_period_s, dt, res.lowpass_order)
+    horizon = max(1, int(round(res.multistep_horizon_s / dt)))
+    multi, multi_reg, multi_run = [], [], []
+    for i, run in enumerate(runs):
+        starts = np.arange(0, run.length - horizon, horizon)
+        if not len(starts):
+            continue
+        idx = starts[:, None] + np.arange(horizon + 1)[None, :]
+        pred = predictor.simulate(run.z[starts], run.psi[starts], run.c[idx])
+        multi.append(run.z[starts + horizon] - pred[:, -1])
+        multi_reg.append(regimes_of(run, starts + horizon // 2, seas[i]))
+        multi_run.append(np.full(len(starts), i))
+    merged = {k: np.concatenate([r[k] for r in reg]) for k in REGIMES}
+    if multi:
+        multistep = np.concatenate(multi)
+        multi_merged = {k: np.concatenate([r[k] for r in multi_reg]) for k in REGIMES}
+        multi_runs = np.concatenate(multi_run)
+    else:
+        multistep = np.zeros((0, 5))
+        multi_merged = {k: np.zeros(0) for k in REGIMES}
+        multi_runs = np.zeros(0, dtype=int)
+    return Residuals(one_step, force, merged, run_index, np.concatenate(time), multistep,
+                     multi_merged, multi_runs, label, tuple(r.run_id for r in runs))
+
+
+def _edges(values: np.ndarray, bins: int, regime: str) -> np.ndarray:
+    if regime == 'heading':
+        return np.linspace(0.0, 360.0, bins + 1)
+    if regime == 'wind_angle':
+        return np.linspace(-180.0, 180.0, bins + 1)
+    lo, hi = np.percentile(values, [1, 99]) if len(values) else (0.0, 1.0)
+    if not hi > lo:
+        hi = lo + 1e-9
+    return np.linspace(lo, hi, bins + 1)
+
+
+def binned(values: np.ndarray, residual: np.ndarray, regime: str, bins: int, min_count: int,
+           neff_ratio: float) -> dict:
+    """Bin means of ``residual`` against ``values`` with 95 % intervals and eta^2."""
+    edges = _edges(values, bins, regime)
+    which = np.clip(np.digitize(values, edges) - 1, 0, bins - 1)
+    inside = (values >= edges[0]) & (values <= edges[-1])
+    centres, means, halfwidths, counts = [], [], [], []
+    total_var = float(np.var(residual[inside])) if inside.any() else 0.0
+    between = 0.0
+    grand = float(np.mean(residual[inside])) if inside.any() else 0.0
+    for b in range(bins):
+        sel = inside & (which == b)
+        n = int(sel.sum())
+        if n < min_count:
+            continue
+        mean = float(np.mean(residual[sel]))
+        sd = float(np.std(residual[sel]))
+        centres.append(0.5 * (edges[b] + edges[b + 1]))
+        means.append(mean)
+        halfwidths.append(1.96 * sd / np.sqrt(max(n * neff_ratio, 1.0)))
+        counts.append(n)
+        between += n * (mean - grand) ** 2
+    n_in = int(inside.sum())
+    eta2 = between / (n_in * total_var) if (n_in and total_var > 0) else 0.0
+    return {'centres': centres, 'mean': means, 'ci95_halfwidth': halfwidths, 'count': counts,
+            'eta2': float(eta2)}
+
+
+def within_run_eta2(values: np.ndarray, residual: np.ndarray, run_index: np.ndarray,
+                    regime: str, bins: int, min_count: int) -> float:
+    """Mean over runs of eta^2 of the residual against the regime, bins per run."""
+    scores, weights = [], []
+    for i in np.unique(run_index):
+        sel = run_index == i
+        if sel.sum() < 2 * min_count:
+            continue
+        scores.append(binned(values[sel], residual[sel], regime, bins, min_count, 1.0)['eta2'])
+        weights.append(int(sel.sum()))
+    return float(np.average(scores, weights=weights)) if scores else 0.0
+
+
+def regime_maps(res: Residuals, settings) -> dict:
+    """Every map: family -> quantity -> regime -> binned numbers (see ``binned``)."""
+    cfg = settings.locate
+    families = {
+        'force': (res.force, DOF_NAMES, res.regimes, res.run_index),
+        'one_step': (res.one_step, STATES, res.regimes, res.run_index),
+        'multistep': (res.multistep, STATES, res.multistep_regimes, res.multistep_run),
+    }
+    out: dict = {}
+    for family, (values, names, regimes, runs) in families.items():
+        out[family] = {}
+        if not len(values):
+            continue
+        for j, name in enumerate(names):
+            ratio = effective_sample_ratio(values[:, j]) if len(values) > 3 else 1.0
+            out[family][name] = {}
+            min_count = cfg.min_bin_samples if family != 'multistep' else 3
+            for regime in REGIMES:
+                entry = binned(regimes[regime], values[:, j], regime, cfg.bins, min_count,
+                               ratio)
+                if regime == 'heading':
+                    entry['eta2_within_runs'] = within_run_eta2(
+                        regimes[regime], values[:, j], runs, regime, cfg.bins, min_count)
+                out[family][name][regime] = entry
+    return out
+
+
+def state_summary(res: Residuals) -> dict:
+    """RMS and mean of every residual (one-step, multistep per state; force per DOF)."""
+    out = {'one_step': {}, 'multistep': {}, 'force': {}}
+    for j, s in enumerate(STATES):
+        out['one_step'][s] = {'rms': float(np.sqrt(np.mean(res.one_step[:, j] ** 2))),
+                              'mean': float(np.mean(res.one_step[:, j])),
+                              'unit': STATE_UNITS[j]}
+        if len(res.multistep):
+            out['multistep'][s] = {'rms': float(np.sqrt(np.mean(res.multistep[:, j] ** 2))),
+                                   'mean': float(np.mean(res.multistep[:, j])),
+                                   'unit': STATE_UNITS[j]}
+    for j, d in enumerate(DOF_NAMES):
+        out['force'][d] = {'rms': float(np.sqrt(np.mean(res.force[:, j] ** 2))),
+                           'mean': float(np.mean(res.force[:, j])), 'unit': DOF_UNITS[j]}
+    return out
+
+
+def departures(res: Residuals, dt: float, settings) -> list[dict]:
+    """Time windows where the low-passed force residual of a DOF departs from zero."""
+    cfg = settings.locate
+    width = max(2, int(round(cfg.window_s / dt)))
+    ratios = [effective_sample_ratio(res.force[:, j]) for j in range(4)]
+    out = []
+    for i, run_id in enumerate(res.run_ids):
+        rows = np.flatnonzero(res.run_index == i)
+        for start in range(0, len(rows) - width // 2, width):
+            sel = rows[start:start + width]
+            for j, dof in enumerate(DOF_NAMES):
+                values = res.force[sel, j]
+                mean = float(np.mean(values))
+                se = float(np.std(values) / np.sqrt(max(len(values) * ratios[j], 1.0)))
+                z = abs(mean) / se if se > 0 else 0.0
+                if z >= cfg.window_flag and abs(mean) >= cfg.force_floor[j]:
+                    out.append({'run': run_id, 'start_s': float(res.time[sel[0]]),
+                                'end_s': float(res.time[sel[-1]] + dt), 'dof': dof,
+                                'mean_force': mean, 'unit': DOF_UNITS[j], 'z_score': z})
+    return out
+
+
+def window_count(res: Residuals, dt: float, settings) -> int:
+    """Return the number of time windows checked per DOF."""
+    width = max(2, int(round(settings.locate.window_s / dt)))
+    return sum(len(range(0, int((res.run_index == i).sum()) - width // 2, width))
+               for i in range(len(res.run_ids)))

@@ -1,0 +1,239 @@
+"""
+The whole diagnosis: locate, name, model, show; one call, one findings mapping.
+
+``diagnose(recordings, physics, out)`` reads the recordings and the nominal physics,
+holds some recordings out, locates the mismatch, identifies the missing terms, writes the
+augmented physics, evaluates nominal and augmented physics on the held-out recordings and
+writes findings.json, report.md and the figures into ``out``. It returns the findings
+mapping; its ``status`` says what the CLI's exit code should be.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+import math
+from pathlib import Path
+import time
+
+import numpy as np
+
+from vessel_diagnosis.design import Segments, make_segments
+from vessel_diagnosis.evaluate import evaluate
+from vessel_diagnosis.findings import (
+    SCHEMA,
+    STATUS,
+    augmented_physics,
+    candidate_records,
+    category_table,
+    excitation_verdict,
+    finding_records,
+    status_of,
+    summary_line,
+    write_augmented,
+)
+from vessel_diagnosis.identify import CURRENT, Identification, Identifier, Point
+from vessel_diagnosis.library import Library, load_library
+from vessel_diagnosis.locate import (
+    DOF_NAMES,
+    REGIMES,
+    compute_residuals,
+    departures,
+    regime_maps,
+    state_summary,
+    window_count,
+)
+from vessel_diagnosis.recordings import Run, load_recordings, signal_ranges, split_holdout
+from vessel_diagnosis.report import write_report
+from vessel_diagnosis.settings import Settings, load_settings
+from vessel_physics.augmented import Physics, load_physics
+
+SERIES_STEP_S = 5.0   # time step of the force series kept for the windows figure
+
+
+class InsufficientDataError(ValueError):
+    """The recordings are too short or too little excited; the message says why."""
+
+
+@dataclass
+class Named:
+    """The naming step's result: what was kept, as findings, and the verdict."""
+
+    identification: Identification
+    records: list[dict]
+    status: str
+    enough: bool
+    not_checkable: list[str]
+    signals: dict
+    identifier: Identifier
+    segments: Segments
+
+
+def name_missing_physics(runs: Sequence[Run], nominal: Physics, settings: Settings,
+                         library: Library, say: Callable[[str], None] | None = None) -> Named:
+    """Identify the missing physics on ``runs`` (no before/after evaluation, no report)."""
+    dt = runs[0].dt
+    reg = settings.regression
+    try:
+        segments = make_segments(runs, int(round(reg.horizon_s / dt)),
+                                 int(round(reg.skip_s / dt)))
+    except ValueError as exc:
+        raise InsufficientDataError(f'every run is too short: {exc}') from None
+    identifier = Identifier(nominal, library, settings, say)
+    ident = identifier.run(segments)
+    records = finding_records(ident, library, nominal, settings.validation.min_improvement)
+    enough, missing = excitation_verdict(ident, library, settings.excitation.min_categories)
+    return Named(ident, records, status_of(records, enough), enough, missing,
+                 signal_ranges(runs), identifier, segments)
+
+
+def _hours(runs: Sequence[Run]) -> float:
+    return sum(r.length * r.dt for r in runs) / 3600.0
+
+
+def _ranking(maps: dict) -> dict:
+    out = {}
+    for family, quantities in maps.items():
+        out[family] = {}
+        for name, regimes in quantities.items():
+            scores = {r: max(e['eta2'], e.get('eta2_within_runs', 0.0))
+                      for r, e in regimes.items()}
+            out[family][name] = sorted(scores.items(), key=lambda kv: -kv[1])
+    return out
+
+
+def _series(residuals, dt: float) -> dict:
+    step = max(1, int(round(SERIES_STEP_S / dt)))
+    out = {}
+    for i, run in enumerate(residuals.run_ids[:4]):
+        rows = np.flatnonzero(residuals.run_index == i)[::step]
+        out[run] = {'t': residuals.time[rows].tolist(),
+                    **{d: residuals.force[rows, j].tolist() for j, d in enumerate(DOF_NAMES)}}
+    return out
+
+
+def _clean(value):
+    """Return ``value`` with numpy scalars as floats and non-finite numbers as None."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(float(value)) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def diagnose(recordings: Sequence[str | Path], physics: str | Path, out: str | Path,
+             settings: Settings | None = None, library: Library | None = None,
+             topic_map=None, say: Callable[[str], None] | None = None) -> dict:
+    """Run the diagnosis and write REPORT_DIR; return the findings mapping."""
+    say = say or (lambda message: None)
+    settings = settings or load_settings()
+    library = library or load_library()
+    out = Path(out)
+    timing: dict[str, float] = {}
+    start = time.perf_counter()
+    say('reading the recordings')
+    runs = load_recordings(recordings, topic_map)
+    nominal: Physics = load_physics(physics)
+    ev = settings.evaluation
+    diag, held, how = split_holdout(runs, ev.holdout_fraction, ev.holdout_seed)
+    result = {
+        'schema': SCHEMA,
+        'recordings': {'paths': [str(p) for p in recordings], 'n_runs': len(runs),
+                       'hours': _hours(runs), 'diagnosis_runs': [r.run_id for r in diag],
+                       'diagnosis_hours': _hours(diag), 'held_out_runs': [r.run_id for r in held],
+                       'held_out_how': how, 'rate_hz': 1.0 / runs[0].dt},
+        'nominal_physics': {'source': str(physics), 'vessel': nominal.params.name,
+                            'terms': list(nominal.terms),
+                            'extra_terms': [t.to_dict() for t in nominal.extra_terms]},
+        'categories': category_table(),
+        'settings': settings.to_dict(),
+    }
+    seconds = _hours(diag) * 3600.0
+    if seconds < settings.excitation.min_duration_s:
+        raise InsufficientDataError(
+            f'the recordings give {seconds:.0f} s to diagnose on (after holding out '
+            f'{len(held)} run(s) for the before/after check); the diagnosis needs at least '
+            f'{settings.excitation.min_duration_s:.0f} s of recording with the vessel under '
+            f'way')
+    timing['read'] = time.perf_counter() - start
+
+    say(f'locating: residuals of the nominal physics on {len(diag)} runs '
+        f'({seconds / 3600:.2f} h)')
+    t0 = time.perf_counter()
+    residuals = compute_residuals(diag, nominal, settings)
+    maps = regime_maps(residuals, settings)
+    dt = diag[0].dt
+    locate = {'summary': state_summary(residuals), 'maps': maps, 'ranking': _ranking(maps),
+              'windows': departures(residuals, dt, settings),
+              'windows_checked': window_count(residuals, dt, settings),
+              'window_s': settings.locate.window_s, 'window_flag': settings.locate.window_flag,
+              'multistep_horizon_s': settings.residuals.multistep_horizon_s,
+              'sea_state': residuals.sea_state_label,
+              'regimes': {**REGIMES, 'sea_state': residuals.sea_state_axis}}
+    timing['locate'] = time.perf_counter() - t0
+
+    say('naming: sparse regression over the candidate library')
+    t0 = time.perf_counter()
+    named = name_missing_physics(diag, nominal, settings, library, lambda m: say('  ' + m))
+    ident, records, status = named.identification, named.records, named.status
+    enough, missing, signals = named.enough, named.not_checkable, named.signals
+    identifier, segments = named.identifier, named.segments
+    timing['name'] = time.perf_counter() - t0
+    result.update({
+        'status': status, 'status_meaning': STATUS[status],
+        'summary': summary_line(status, records, missing, signals),
+        'findings': records,
+        'candidates': candidate_records(ident, library),
+        'rounds': ident.rounds,
+        'excitation': {'enough': enough, 'not_checkable': missing,
+                       'min_categories': settings.excitation.min_categories,
+                       'signals': signals},
+        'locate': locate,
+    })
+
+    aug = None
+    if records:
+        say('modelling: writing the augmented physics')
+        aug = augmented_physics(ident, records, nominal)
+        out.mkdir(parents=True, exist_ok=True)
+        result['augmented_physics'] = write_augmented(out, aug, records, str(physics))
+    else:
+        result['augmented_physics'] = None
+
+    t0 = time.perf_counter()
+    if held and aug is not None:
+        say(f'showing: nominal and augmented physics on {len(held)} held-out runs')
+        currents = {}
+        if CURRENT in ident.kept:
+            calib = int(round(ev.calibration_s / dt))
+            pieces = [r.piece(0, min(calib + 1, r.length), '', 'test') for r in held
+                      if min(calib + 1, r.length) > segments.horizon]
+            if pieces:
+                calib_segments = make_segments(pieces, segments.horizon, segments.skip)
+                point, _ = identifier.refit(calib_segments, Point(dict(ident.point.theta)),
+                                            [CURRENT])
+                currents = point.currents
+        metrics = evaluate(held, {'nominal': (nominal, {}), 'augmented': (aug, currents)},
+                           settings)
+        metrics['horizon'] = ev.horizon
+        metrics['held_out_currents'] = {k: v.tolist() for k, v in currents.items()}
+        result['metrics'] = metrics
+    elif held:
+        say(f'showing: nominal physics on {len(held)} held-out runs')
+        result['metrics'] = evaluate(held, {'nominal': (nominal, {})}, settings)
+        result['metrics']['horizon'] = ev.horizon
+    else:
+        result['metrics'] = None
+    timing['show'] = time.perf_counter() - t0
+    timing['total'] = time.perf_counter() - start
+    result['timing_s'] = timing
+    result = _clean(result)
+    say('writing the report')
+    write_report(out, result, _series(residuals, dt))
+    return result

@@ -1,0 +1,177 @@
+"""
+Batch predictions of a physics (numpy): one step, and multistep from measured states.
+
+The model integrates M nu_r' = physics.force(nu_r, c, nu_ground), phi' = p and
+psi' = r cos phi (Fossen 2011; the simulator's kinematics) with classical RK4 sub-steps
+over each sample period. States and outputs are body velocities OVER GROUND, as measured;
+with a current (north, east in m/s, constant over a prediction) the model integrates the
+velocity through the water nu_r = nu_ground - (u_c, v_c), where
+(u_c, v_c) = V_c rotated into the levelled body frame at the heading psi (Fossen 2011,
+Property 10.1: for a current constant in NED the rigid-body and hydrodynamic terms can be
+written in nu_r).
+
+Controls between samples are interpolated linearly (first-order hold) from c_k to
+c_{k+1}: the actuators move during a period (rudder servo 0.2 s, shaft 1 s), and a
+zero-order hold would leave a systematic error at every order change that the diagnosis
+would then try to explain.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from vessel_physics.augmented import Physics
+from vessel_physics.integrator import rk4_step
+from vessel_physics.mass import inverse_mass_matrix_T
+
+U, V, P, R, PHI, PSI = range(6)
+N_STATE = 5
+
+
+def body_current(current: np.ndarray | None, psi: np.ndarray):
+    """Return (u_c, v_c) of a NED current (..., 2) at heading psi (rad); zeros if None."""
+    if current is None:
+        return 0.0, 0.0
+    north, east = current[..., 0], current[..., 1]
+    cos_psi, sin_psi = np.cos(psi), np.sin(psi)
+    return north * cos_psi + east * sin_psi, -north * sin_psi + east * cos_psi
+
+
+@dataclass(frozen=True)
+class Variant:
+    """
+    A change of the physics for one block of a batched prediction (see simulate_variants).
+
+    ``extra_force(z_water, c, z_ground) -> (n, 4)`` is added to the physics' force,
+    ``minv_t`` replaces its (M^-1)^T, ``current_shift`` (north, east, m/s) is added to
+    the rows' current.
+    """
+
+    extra_force: Callable | None = None
+    minv_t: np.ndarray | None = None
+    current_shift: tuple[float, float] | None = None
+
+
+class Predictor:
+    """Predictions of one physics; ``substeps`` RK4 steps per sample period ``dt`` (s)."""
+
+    def __init__(self, physics: Physics, dt: float = 1.0, substeps: int = 4):
+        if substeps < 1 or not dt > 0:
+            raise ValueError(f'need dt > 0 and substeps >= 1, got {dt}, {substeps}')
+        self.physics = physics
+        self.dt = float(dt)
+        self.substeps = int(substeps)
+        self._minv_t = inverse_mass_matrix_T(physics.params)
+        self._blocks: list[tuple[slice, Variant]] = []
+
+    def derivative(self, x: np.ndarray, c: np.ndarray, current: np.ndarray | None):
+        """Return x' for x = [u_r, v_r, p, r, phi, psi] (n, 6) under controls c (n, 6)."""
+        z_water = x[:, :N_STATE]
+        z_ground = z_water
+        if current is not None:
+            u_c, v_c = body_current(current, x[:, PSI])
+            z_ground = z_water.copy()
+            z_ground[:, U] += u_c
+            z_ground[:, V] += v_c
+        tau = self.physics.force(z_water, c, z_ground)
+        for rows, variant in self._blocks:
+            if variant.extra_force is not None:
+                tau[rows] += variant.extra_force(z_water[rows], c[rows], z_ground[rows])
+        dx = np.empty_like(x)
+        dx[:, :4] = tau @ self._minv_t
+        for rows, variant in self._blocks:
+            if variant.minv_t is not None:
+                dx[rows, :4] = tau[rows] @ variant.minv_t
+        dx[:, PHI] = x[:, P]
+        dx[:, PSI] = x[:, R] * np.cos(x[:, PHI])
+        return dx
+
+    def _advance(self, x, c0, c1, current):
+        """One sample period from x with controls going linearly from c0 to c1."""
+        h = self.dt / self.substeps
+        slope = (c1 - c0) / self.dt
+        for k in range(self.substeps):
+            t0 = k * h
+
+            def f(t, s, t0=t0):
+                return self.derivative(s, c0 + slope * (t0 + t), current)
+
+            x = rk4_step(f, 0.0, x, h)
+        return x
+
+    @staticmethod
+    def _to_water(z, psi, current):
+        x = np.empty((len(z), 6))
+        x[:, :N_STATE] = z
+        x[:, PSI] = psi
+        u_c, v_c = body_current(current, psi)
+        x[:, U] -= u_c
+        x[:, V] -= v_c
+        return x
+
+    @staticmethod
+    def _to_ground(x, current):
+        z = x[:, :N_STATE].copy()
+        u_c, v_c = body_current(current, x[:, PSI])
+        z[:, U] += u_c
+        z[:, V] += v_c
+        return z
+
+    def one_step(self, z: np.ndarray, psi: np.ndarray, c0: np.ndarray, c1: np.ndarray,
+                 current: np.ndarray | None = None) -> np.ndarray:
+        """
+        Predict z one period ahead for every row (n, 5).
+
+        ``z`` (n, 5) measured states over ground, ``psi`` (n,) heading, ``c0``, ``c1``
+        (n, 6) the controls at the start and end of the period, ``current`` (n, 2) NED
+        current per row or None.
+        """
+        x = self._to_water(np.asarray(z, float), np.asarray(psi, float), current)
+        return self._to_ground(self._advance(x, c0, c1, current), current)
+
+    def simulate(self, z0: np.ndarray, psi0: np.ndarray, c: np.ndarray,
+                 current: np.ndarray | None = None) -> np.ndarray:
+        """
+        Free-run predictions from measured initial states: (n, H, 5) for c (n, H + 1, 6).
+
+        Row i starts from ``z0[i]``, ``psi0[i]`` at the time of ``c[i, 0]``; step k of the
+        output is the state at the time of ``c[i, k + 1]``.
+        """
+        c = np.asarray(c, float)
+        horizon = c.shape[1] - 1
+        x = self._to_water(np.asarray(z0, float), np.asarray(psi0, float), current)
+        out = np.empty((len(x), horizon, N_STATE))
+        for k in range(horizon):
+            x = self._advance(x, c[:, k], c[:, k + 1], current)
+            out[:, k] = self._to_ground(x, current)
+        return out
+
+    def simulate_variants(self, z0: np.ndarray, psi0: np.ndarray, c: np.ndarray,
+                          current: np.ndarray | None, variants: Sequence[Variant]
+                          ) -> np.ndarray:
+        """
+        Free runs of the physics and of each variant at once: (1 + V, n, H, 5).
+
+        Block 0 is the physics itself, block i + 1 variant i; all blocks start from the
+        same states. One vectorized integration evaluates the shared force terms once for
+        every block, which is what makes a design of 40 candidates affordable.
+        """
+        n, copies = len(z0), len(variants) + 1
+        tiled = [np.concatenate([np.asarray(a, float)] * copies) for a in (z0, psi0, c)]
+        base = np.zeros((n, 2)) if current is None else np.asarray(current, float)
+        cur = np.concatenate([base] * copies)
+        shifted = current is not None
+        for i, variant in enumerate(variants):
+            if variant.current_shift is not None:
+                cur[(i + 1) * n:(i + 2) * n] += np.asarray(variant.current_shift, float)
+                shifted = True
+        self._blocks = [(slice((i + 1) * n, (i + 2) * n), v) for i, v in enumerate(variants)
+                        if v.extra_force is not None or v.minv_t is not None]
+        try:
+            out = self.simulate(*tiled, cur if shifted else None)
+        finally:
+            self._blocks = []
+        return out.reshape(copies, n, out.shape[1], N_STATE)

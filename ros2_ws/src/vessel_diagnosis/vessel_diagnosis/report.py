@@ -1,0 +1,351 @@
+"""
+The report: REPORT_DIR/report.md with PNG figures, every number in findings.json.
+
+``write_report(out, result)`` takes the findings.json mapping built by ``pipeline`` and
+draws from it alone, so the figures and tables show exactly the numbers in the JSON.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use('Agg')
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from vessel_diagnosis.design import STATES  # noqa: E402
+from vessel_diagnosis.locate import DOF_NAMES, DOF_UNITS, REGIMES, STATE_UNITS  # noqa: E402
+
+DPI = 110
+
+
+def _fmt(x, digits: int = 3) -> str:
+    if x is None:
+        return '–'
+    if isinstance(x, (int, np.integer)):
+        return str(x)
+    if x == 0:
+        return '0'
+    return f'{x:.{digits}g}'
+
+
+def _pct(x) -> str:
+    return '–' if x is None else f'{100 * x:+.0f} %'
+
+
+def _map_figure(path: Path, maps: dict, names, units, title: str, regimes_label: dict) -> None:
+    regimes = list(REGIMES)
+    fig, axes = plt.subplots(len(names), len(regimes), figsize=(2.6 * len(regimes),
+                                                                 1.9 * len(names)),
+                             squeeze=False, sharex='col')
+    for i, name in enumerate(names):
+        for j, regime in enumerate(regimes):
+            ax = axes[i, j]
+            entry = maps.get(name, {}).get(regime)
+            if entry and entry['centres']:
+                x = np.array(entry['centres'])
+                m = np.array(entry['mean'])
+                h = np.array(entry['ci95_halfwidth'])
+                ax.fill_between(x, m - h, m + h, color='tab:blue', alpha=0.25, lw=0)
+                ax.plot(x, m, 'o-', color='tab:blue', ms=3, lw=1)
+                eta = entry['eta2']
+                extra = (f', within runs {entry["eta2_within_runs"]:.2f}'
+                         if 'eta2_within_runs' in entry else '')
+                ax.set_title(f'eta²={eta:.2f}{extra}', fontsize=7)
+            ax.axhline(0.0, color='k', lw=0.5)
+            ax.tick_params(labelsize=7)
+            if i == len(names) - 1:
+                ax.set_xlabel(regimes_label[regime], fontsize=7)
+            if j == 0:
+                ax.set_ylabel(f'{name} ({units[i]})', fontsize=8)
+    fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def _windows_figure(path: Path, series: dict, windows: list[dict]) -> None:
+    runs = list(series)[:4]
+    if not runs:
+        return
+    fig, axes = plt.subplots(4, len(runs), figsize=(4.0 * len(runs), 6.5), squeeze=False,
+                             sharex='col')
+    for j, run in enumerate(runs):
+        t = np.array(series[run]['t'])
+        for i, dof in enumerate(DOF_NAMES):
+            ax = axes[i, j]
+            ax.plot(t / 60.0, np.array(series[run][dof]) / 1e3, lw=0.8)
+            for w in windows:
+                if w['run'] == run and w['dof'] == dof:
+                    ax.axvspan(w['start_s'] / 60.0, w['end_s'] / 60.0, color='tab:red',
+                               alpha=0.2, lw=0)
+            ax.axhline(0.0, color='k', lw=0.5)
+            ax.tick_params(labelsize=7)
+            if j == 0:
+                ax.set_ylabel(f'{dof} (k{DOF_UNITS[i]})', fontsize=8)
+            if i == 0:
+                ax.set_title(run, fontsize=8)
+            if i == 3:
+                ax.set_xlabel('time (min)', fontsize=8)
+    fig.suptitle('Low-passed residual generalized force (shaded: departing windows)',
+                 fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def _candidates_figure(path: Path, candidates: list[dict]) -> None:
+    names = [c['name'] for c in candidates]
+    probs = [c['max_inclusion_probability'] for c in candidates]
+    colors = ['tab:red' if c['status'] == 'kept' else
+              ('tab:orange' if c['status'].startswith('pruned') else
+               ('lightgray' if c['status'].startswith('not identifiable') else 'tab:blue'))
+              for c in candidates]
+    fig, ax = plt.subplots(figsize=(7.0, 0.18 * len(names) + 1.2))
+    y = np.arange(len(names))
+    ax.barh(y, probs, color=colors)
+    ax.set_yticks(y, names, fontsize=7)
+    ax.invert_yaxis()
+    ax.set_xlim(0, 1)
+    ax.set_xlabel('inclusion probability (largest over rounds)', fontsize=8)
+    ax.set_title('Candidates: red kept, orange pruned by the held-out check, '
+                 'gray not identifiable', fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def _before_after_figure(path: Path, metrics: dict) -> None:
+    one = metrics.get('one_step_rmse', {})
+    fc = metrics.get('forecast', {})
+    models = [m for m in ('nominal', 'augmented') if one.get(m)]
+    if len(models) < 2:
+        return
+    fig, axes = plt.subplots(1, 3, figsize=(13.0, 3.4))
+    width = 0.38
+    x = np.arange(len(STATES))
+    for k, model in enumerate(models):
+        ref = np.array([one[models[0]][s] for s in STATES])
+        vals = np.array([one[model][s] for s in STATES])
+        axes[0].bar(x + (k - 0.5) * width, vals / ref, width, label=model)
+        if fc.get(model):
+            ref_f = np.array([fc[models[0]]['rmse'][s] for s in STATES])
+            vals_f = np.array([fc[model]['rmse'][s] for s in STATES])
+            axes[1].bar(x + (k - 0.5) * width, vals_f / ref_f, width, label=model)
+            minutes = fc[model]['trajectory'].get('per_minute_mean') or []
+            axes[2].plot(np.arange(1, len(minutes) + 1), minutes, 'o-', ms=3, label=model)
+    for ax, title in ((axes[0], 'one-step RMSE (relative to nominal)'),
+                      (axes[1], '900-step forecast RMSE (relative to nominal)')):
+        ax.set_xticks(x, STATES)
+        ax.axhline(1.0, color='k', lw=0.5)
+        ax.set_title(title, fontsize=9)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+    axes[2].set_xlabel('forecast minute', fontsize=8)
+    axes[2].set_ylabel('mean position error (m)', fontsize=8)
+    axes[2].set_title('trajectory error along the forecast', fontsize=9)
+    if axes[2].get_legend_handles_labels()[0]:
+        axes[2].legend(fontsize=7)
+    if not axes[1].get_legend_handles_labels()[0]:
+        axes[1].set_title('no 900-step forecast fits in the held-out runs', fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=DPI)
+    plt.close(fig)
+
+
+def _findings_table(findings: list[dict]) -> list[str]:
+    lines = ['| DOF | term | category | coefficient | unit | 95 % interval | inclusion '
+             'probability | affected states | cannot be told apart from |',
+             '|---|---|---|---|---|---|---|---|---|']
+    for f in findings:
+        ci = f['ci95'] or [None, None]
+        rel = (f' ({_pct(f["relative_change"])} of nominal)'
+               if f.get('relative_change') is not None else '')
+        aliases = ', '.join(f'{a["term"]} ({a["category"]}, {100 * a["share"]:.0f} %)'
+                            for a in f['aliases']) or '–'
+        lines.append(f'| {f["dof"]} | `{f["term"]}` | {f["category"]} | '
+                     f'{_fmt(f["coefficient"], 4)}{rel} | {f["unit"]} | '
+                     f'[{_fmt(ci[0], 4)}, {_fmt(ci[1], 4)}] | '
+                     f'{_fmt(f["inclusion_probability"], 2)} | '
+                     f'{", ".join(f["affected_states"]) or "–"} | {aliases} |')
+    return lines
+
+
+def _metrics_tables(metrics: dict) -> list[str]:
+    one = metrics.get('one_step_rmse', {})
+    fc = metrics.get('forecast', {})
+    imp = metrics.get('improvement', {})
+    lines = [f'Held-out runs: {", ".join(metrics.get("runs", []))}; errors after the first '
+             f'{metrics.get("start_sample", 0)} samples of each (per-run terms are estimated '
+             f'there); targets: {metrics.get("target")} states; '
+             f'{metrics.get("n_forecasts", 0)} forecasts of {metrics.get("horizon", 900)} '
+             f'steps.', '',
+             '| error | model | ' + ' | '.join(f'{s} ({u})' for s, u in
+                                               zip(STATES, STATE_UNITS, strict=True))
+             + ' | trajectory (m) |',
+             '|---|---|' + '---|' * (len(STATES) + 1)]
+    for model in ('nominal', 'augmented'):
+        if one.get(model):
+            lines.append(f'| one-step RMSE | {model} | '
+                         + ' | '.join(_fmt(one[model][s]) for s in STATES) + ' | |')
+    for model in ('nominal', 'augmented'):
+        if fc.get(model):
+            t = fc[model]['trajectory']
+            lines.append(f'| 900-step RMSE | {model} | '
+                         + ' | '.join(_fmt(fc[model]['rmse'][s]) for s in STATES)
+                         + f' | {_fmt(t["mean"], 4)} ± {_fmt(t["ci95"], 2)} |')
+    if imp.get('one_step_rmse'):
+        lines.append('| one-step change | | ' + ' | '.join(
+            _pct(-imp['one_step_rmse'][s]) for s in STATES) + ' | |')
+    if imp.get('forecast_rmse'):
+        lines.append('| 900-step change | | ' + ' | '.join(
+            _pct(-imp['forecast_rmse'][s]) for s in STATES)
+            + f' | {_pct(-imp["trajectory"]) if imp.get("trajectory") is not None else "–"} |')
+    return lines
+
+
+def write_report(out: Path, result: dict, series: dict | None = None) -> None:
+    """Write findings.json, report.md and the figures into ``out``."""
+    out.mkdir(parents=True, exist_ok=True)
+    (out / 'findings.json').write_text(json.dumps(result, indent=2, allow_nan=False))
+    loc = result.get('locate') or {}
+    regimes_label = {**REGIMES, **loc.get('regimes', {})}
+    figures = []
+    if loc.get('maps'):
+        _map_figure(out / 'locate_force_maps.png', loc['maps']['force'], DOF_NAMES, DOF_UNITS,
+                    'Residual generalized force of the nominal physics (low-passed) '
+                    'against regimes', regimes_label)
+        _map_figure(out / 'locate_multistep_maps.png', loc['maps']['multistep'], STATES,
+                    STATE_UNITS, f'Free-run residual after {loc.get("multistep_horizon_s")} s '
+                    'against regimes', regimes_label)
+        figures += ['locate_force_maps.png', 'locate_multistep_maps.png']
+    if series:
+        _windows_figure(out / 'locate_windows.png', series, loc.get('windows', []))
+        figures.append('locate_windows.png')
+    if result.get('candidates'):
+        _candidates_figure(out / 'candidates.png', result['candidates'])
+    metrics = result.get('metrics') or {}
+    if (metrics.get('one_step_rmse') or {}).get('augmented'):
+        _before_after_figure(out / 'before_after.png', metrics)
+    lines = _markdown(result, loc, metrics)
+    (out / 'report.md').write_text('\n'.join(lines) + '\n')
+
+
+def _header(result: dict) -> list[str]:
+    rec, nominal = result['recordings'], result['nominal_physics']
+    lines = ['# Simulation-to-reality diagnosis', '', f'**{result["summary"]}**', '',
+             f'Status: `{result["status"]}`. Nominal physics: `{nominal["source"]}` '
+             f'(terms: {", ".join(nominal["terms"])}).', '',
+             f'Recordings: {rec["n_runs"]} runs, {rec["hours"]:.2f} h; diagnosed on '
+             f'{len(rec["diagnosis_runs"])} runs ({rec["diagnosis_hours"]:.2f} h), held out '
+             f'{len(rec["held_out_runs"])} ({rec["held_out_how"]}). Run time '
+             f'{result["timing_s"]["total"]:.0f} s.', '']
+    missing = result.get('excitation', {}).get('not_checkable')
+    if missing:
+        lines += [f'Not checkable with these recordings (no candidate of the category can be '
+                  f'told from the other categories): {", ".join(missing)}.', '']
+    return lines
+
+
+def _locate_section(loc: dict) -> list[str]:
+    lines = ['## 1. Where the nominal physics departs', '']
+    if not loc:
+        return lines + ['Not located (the recordings could not be diagnosed).', '']
+    summ = loc['summary']
+    lines += ['| residual | ' + ' | '.join(STATES) + ' |', '|---|' + '---|' * len(STATES)]
+    horizon = f'{loc["multistep_horizon_s"]:.0f}-s RMS'
+    for family, label in (('one_step', 'one-step RMS'), ('multistep', horizon)):
+        if summ.get(family):
+            lines.append(f'| {label} | '
+                         + ' | '.join(_fmt(summ[family][s]['rms']) for s in STATES) + ' |')
+    lines += ['', '| DOF | mean force | RMS (low-passed) | strongest regime (eta²) | '
+              'departing windows |', '|---|---|---|---|---|']
+    for j, dof in enumerate(DOF_NAMES):
+        f = summ['force'][dof]
+        top = ', '.join(f'{r} ({v:.2f})' for r, v in loc['ranking']['force'][dof][:2])
+        n_win = sum(1 for w in loc['windows'] if w['dof'] == dof)
+        lines.append(f'| {dof} | {_fmt(f["mean"])} {DOF_UNITS[j]} | {_fmt(f["rms"])} '
+                     f'{DOF_UNITS[j]} | {top} | {n_win} of {loc["windows_checked"]} |')
+    lines += ['', f'Sea state: {loc["sea_state"]}. Departing windows are '
+              f'{loc["window_s"]:.0f}-s spans whose mean force residual is at least '
+              f'{loc["window_flag"]:g} standard errors from zero and above the force floor.', '']
+    shown = sorted(loc['windows'], key=lambda w: -w['z_score'])[:10]
+    if shown:
+        lines += ['| run | from (s) | to (s) | DOF | mean force | z |',
+                  '|---|---|---|---|---|---|']
+        lines += [f'| {w["run"]} | {w["start_s"]:.0f} | {w["end_s"]:.0f} | {w["dof"]} | '
+                  f'{_fmt(w["mean_force"])} {w["unit"]} | {w["z_score"]:.1f} |' for w in shown]
+        lines.append('')
+    return lines + ['![force maps](locate_force_maps.png)', '',
+                    '![multistep maps](locate_multistep_maps.png)', '',
+                    '![windows](locate_windows.png)', '']
+
+
+def _current_table(finding: dict) -> list[str]:
+    lines = [f'Current per run (`{finding["term"]}`): direction it flows to, from north.', '',
+             '| run | north (m/s) | east (m/s) | speed (m/s) | direction (deg) | '
+             'inclusion probability |', '|---|---|---|---|---|---|']
+    lines += [f'| {run} | {_fmt(v["north"])} | {_fmt(v["east"])} | {_fmt(v["speed"])} | '
+              f'{v["direction_deg"]:.0f} | {_fmt(v["inclusion_probability"], 2)} |'
+              for run, v in finding['per_run'].items()]
+    return lines + ['']
+
+
+def _name_section(result: dict) -> list[str]:
+    lines = ['## 2. What is missing', '']
+    findings = result['findings']
+    if findings:
+        lines += _findings_table(findings) + ['']
+        for f in findings:
+            if f.get('per_run'):
+                lines += _current_table(f)
+        settings = result['settings']
+        lines += ['Held-out gain: how much worse the free-run predictions of each state get '
+                  'without the term (cross-fitted); a term is kept only if some state gains '
+                  f'{100 * settings["validation"]["min_improvement"]:.0f} % or more. '
+                  '"Cannot be told apart": another candidate explains at least '
+                  f'{100 * settings["collinearity"]["alias_share"]:.0f} % of what the term '
+                  'explains (share in brackets); these recordings do not decide between '
+                  'them.', '']
+    else:
+        lines += [result['summary'], '']
+    pruned = [c for c in result['candidates'] if c['status'].startswith('pruned')]
+    if pruned:
+        lines += ['Selected but dropped:', '']
+        lines += [f'- `{c["name"]}` ({c["category"]}): {c["status"][len("pruned: "):]}'
+                  for c in pruned]
+        lines.append('')
+    return lines + ['![candidates](candidates.png)', '']
+
+
+def _model_section(result: dict) -> list[str]:
+    lines = ['## 3. Augmented physics', '']
+    aug = result.get('augmented_physics')
+    if not aug:
+        return lines + ['No augmented physics: nothing was found to add.', '']
+    return lines + [
+        f'- `{aug["physics"]}`: nominal terms plus the extra terms (load with '
+        '`vessel_physics.augmented.load_physics`);',
+        f'- `{aug["vessel"]}`: the vessel parameters with the corrections folded in (a plain '
+        'vessel file for the simulator and `build_first_principles`);',
+        f'- `{aug["simulation"]}`: a simulator scenario using both.', '']
+
+
+def _show_section(metrics: dict) -> list[str]:
+    lines = ['## 4. Before and after, on held-out recordings', '']
+    if (metrics.get('one_step_rmse') or {}).get('augmented'):
+        return lines + _metrics_tables(metrics) + ['', '![before/after](before_after.png)', '']
+    if metrics.get('one_step_rmse'):
+        return lines + ['Nothing was added, so there is no "after"; the nominal physics on '
+                        'the held-out runs:', ''] + _metrics_tables(metrics) + ['']
+    return lines + ['Not evaluated (no held-out recordings).', '']
+
+
+def _markdown(result: dict, loc: dict, metrics: dict) -> list[str]:
+    return (_header(result) + _locate_section(loc) + _name_section(result)
+            + _model_section(result) + _show_section(metrics)
+            + ['Every number above is in `findings.json` (schema in docs/diagnosis.md).'])
+

@@ -1,0 +1,205 @@
+"""
+Settings of the diagnosis: the packaged defaults (config/diagnosis.yaml) and overrides.
+
+``load_settings(path)`` merges a user's YAML over the defaults; an unknown section or key
+raises ``SettingsError`` with one line (and a did-you-mean), a wrong type too.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import yaml
+
+from vessel_physics.errors import did_you_mean
+
+
+class SettingsError(ValueError):
+    """A settings file is invalid; the message is one line."""
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Numerical prediction of the physics."""
+
+    substeps: int
+
+
+@dataclass(frozen=True)
+class Residuals:
+    """Residuals and their filtering before the regression."""
+
+    multistep_horizon_s: float
+    lowpass_period_s: float
+    lowpass_order: int
+
+
+@dataclass(frozen=True)
+class Regression:
+    """Free-run segments whose residuals the candidates are regressed on."""
+
+    horizon_s: float
+    skip_s: float
+    substeps: int
+
+
+@dataclass(frozen=True)
+class Locate:
+    """Residual maps against regimes and time windows."""
+
+    bins: int
+    min_bin_samples: int
+    window_s: float
+    window_flag: float
+    force_floor: tuple[float, float, float, float]
+    sea_state_window_s: float
+
+
+@dataclass(frozen=True)
+class Selection:
+    """Sparse regression with block-bootstrap inclusion probabilities."""
+
+    bootstrap: int
+    block_s: float
+    seed: int
+    inclusion_threshold: float
+    max_terms: int
+    rounds: int
+    gauss_newton_iterations: int
+
+
+@dataclass(frozen=True)
+class Validation:
+    """Held-out check that a selected term improves predictions."""
+
+    folds: int
+    min_improvement: float
+    max_parameter_change: float
+
+
+@dataclass(frozen=True)
+class Collinearity:
+    """When two candidates cannot be told apart."""
+
+    alias_share: float
+    alias_min_correlation: float
+
+
+@dataclass(frozen=True)
+class Excitation:
+    """Whether the recordings can identify anything."""
+
+    min_duration_s: float
+    identifiable_se: float
+    min_categories: int
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """Before/after errors on held-out recordings."""
+
+    holdout_fraction: float
+    holdout_seed: int
+    calibration_s: float
+    window: int
+    horizon: int
+    stride: int
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Every setting of the diagnosis (see config/diagnosis.yaml)."""
+
+    prediction: Prediction
+    residuals: Residuals
+    regression: Regression
+    locate: Locate
+    selection: Selection
+    validation: Validation
+    collinearity: Collinearity
+    excitation: Excitation
+    evaluation: Evaluation
+
+    def to_dict(self) -> dict:
+        """Return the settings as a plain mapping."""
+        return asdict(self)
+
+
+def config_dir() -> Path:
+    """Directory of the packaged YAML files (source tree or colcon install)."""
+    here = Path(__file__).resolve().parent
+    candidates = [here.parent / 'config']
+    candidates += [p / 'share' / 'vessel_diagnosis' / 'config' for p in here.parents]
+    for candidate in candidates:
+        if (candidate / 'diagnosis.yaml').is_file():
+            return candidate
+    raise SettingsError('vessel_diagnosis: cannot find the package config directory')
+
+
+def _read(path: Path) -> dict:
+    try:
+        data = yaml.safe_load(path.read_text()) or {}
+    except OSError as exc:
+        raise SettingsError(f'{path}: cannot read settings ({exc.strerror})') from None
+    except yaml.YAMLError as exc:
+        raise SettingsError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') from None
+    if not isinstance(data, Mapping):
+        raise SettingsError(f'{path}: expected a mapping of sections')
+    return dict(data)
+
+
+def _section(cls, values: Mapping, defaults: Mapping, where: str):
+    names = [f.name for f in fields(cls)]
+    for key in values:
+        if key not in names:
+            raise SettingsError(f'{where}.{key}: unknown key{did_you_mean(str(key), names)}; '
+                                f'allowed: {", ".join(names)}')
+    out = {}
+    for f in fields(cls):
+        value = values.get(f.name, defaults[f.name])
+        default = defaults[f.name]
+        if isinstance(default, list):
+            if not isinstance(value, list) or len(value) != len(default):
+                raise SettingsError(f'{where}.{f.name}: expected a list of {len(default)} '
+                                    f'numbers, got {value!r}')
+            value = tuple(float(v) for v in value)
+        elif isinstance(default, bool) or not isinstance(value, (int, float)) or isinstance(
+                value, bool):
+            raise SettingsError(f'{where}.{f.name}: expected a number, got {value!r}')
+        elif isinstance(default, int):
+            if float(value) != int(value):
+                raise SettingsError(f'{where}.{f.name}: expected an integer, got {value!r}')
+            value = int(value)
+        else:
+            value = float(value)
+        out[f.name] = value
+    return cls(**out)
+
+
+def load_settings(path: str | Path | None = None, overrides: Mapping | None = None) -> Settings:
+    """Return the defaults merged with the YAML file ``path`` and then ``overrides``."""
+    defaults = _read(config_dir() / 'diagnosis.yaml')
+    user = _read(Path(path)) if path else {}
+    for key, value in (overrides or {}).items():
+        user.setdefault(key, {})
+        user[key] = {**user[key], **value}
+    sections = {f.name: f.type for f in fields(Settings)}
+    for key in user:
+        if key not in sections:
+            raise SettingsError(f'{path or "settings"}: {key}: unknown section'
+                                f'{did_you_mean(str(key), sections)}; allowed: '
+                                f'{", ".join(sections)}')
+    classes = {'prediction': Prediction, 'residuals': Residuals, 'regression': Regression,
+               'locate': Locate,
+               'selection': Selection, 'validation': Validation,
+               'collinearity': Collinearity, 'excitation': Excitation,
+               'evaluation': Evaluation}
+    built = {}
+    for name, cls in classes.items():
+        values = user.get(name, {})
+        if not isinstance(values, Mapping):
+            raise SettingsError(f'{path or "settings"}: {name}: expected a mapping')
+        built[name] = _section(cls, values, defaults[name], name)
+    return Settings(**built)
