@@ -1,5 +1,11 @@
 """hybrid_models.engine: the compiled forecast equals the torch model's forecast."""
 
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 import torch
@@ -12,9 +18,13 @@ W, H = 12, 40
 
 
 def make_model(physical, threshold, mode='tanh', seed=0):
+    """Build a hybrid with plausible normalization (``physical``: a kind or a config)."""
     torch.manual_seed(seed)
+    physical_cfg = physical if isinstance(physical, dict) else {'kind': physical,
+                                                                 'substeps': 2}
+    physical = physical_cfg['kind']
     cfg = {'kind': 'hybrid', 'hidden': 16, 'layers': 2, 'dropout': 0.0, 'bound_mode': mode,
-           'physical': {'kind': physical, 'substeps': 2}}
+           'physical': physical_cfg}
     model = build_model(cfg, SHIP)
     rng = np.random.default_rng(seed)
     with torch.no_grad():
@@ -86,3 +96,34 @@ def test_unconstrained_model_passes_the_residual_through():
     expected, _ = torch_forecast(model, z, c, future, torch.float64)
     got = ForecastEngine(model, dtype=np.float64).forecast(z, c, future[0])
     np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)
+
+
+SPLIT_CHECK = """
+import json, sys
+import numpy as np
+from hybrid_models.engine import ForecastEngine
+from tests.unit.test_models_engine import inputs, make_model
+engine = ForecastEngine(make_model('pro+lin', threshold=0.15), dtype=np.float64)
+z, c, future = inputs(batch=64)
+batch = engine.forecast(z, c, future)
+alone = [engine.forecast(z, c, future[k]) for k in (0, 31, 32, 63)]
+print(json.dumps({
+    'devices': len(engine.devices), 'shards': engine._shards(64),
+    'max_diff': max(float(np.abs(batch.hybrid[k] - a.hybrid[0]).max()) + float(np.abs(
+        batch.physics[k] - a.physics[0]).max()) for k, a in zip((0, 31, 32, 63), alone))}))
+"""
+
+
+def test_batches_use_every_core_and_give_each_plan_its_own_forecast():
+    # A fresh interpreter: the engine sets XLA's host device count before jax starts.
+    root = Path(__file__).resolve().parents[2]
+    env = {k: v for k, v in os.environ.items() if k != 'XLA_FLAGS'}
+    env['PYTHONPATH'] = os.pathsep.join(p for p in sys.path if p)   # pytest's pythonpath
+    out = subprocess.run([sys.executable, '-c', SPLIT_CHECK], capture_output=True, text=True,
+                         cwd=root, env=env, timeout=240)
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    cores = len(os.sched_getaffinity(0))
+    assert result['devices'] == cores
+    assert result['shards'] == min(cores, 64 // 8)
+    assert result['max_diff'] < 1e-9

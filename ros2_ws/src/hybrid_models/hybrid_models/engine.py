@@ -13,13 +13,22 @@ written against the Array API), and the regression features come from the torch
 model's own ``FeatureMap``. What is written here is the standard LSTM cell (gate order
 i, f, g, o, as torch.nn.LSTM) and the data flow of ``HybridModel.step``; a test holds
 it equal to the torch model's forecast.
+
+XLA runs one program on one host core, and programs on the same device run one after
+the other. So that a batch of what-if plans uses every core, the engine asks XLA for
+one host device per core (``--xla_force_host_platform_device_count`` in ``XLA_FLAGS``,
+unless the user set it or jax was imported first) and splits batches of
+``MIN_SHARD`` plans or more across the devices; a single forecast stays on one device.
+Each plan's forecast is the same computation wherever it runs.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 import hashlib
+import os
 from pathlib import Path
+import sys
 
 import numpy as np
 
@@ -34,7 +43,16 @@ class Forecast:
     physics: np.ndarray   # (B, H, n_state); hybrid - physics is the bounded correction
 
 
+DEVICE_COUNT_FLAG = '--xla_force_host_platform_device_count'
+MIN_SHARD = 8   # plans per device below which splitting a batch costs more than it gains
+
+
 def _jax():
+    if 'jax' not in sys.modules and DEVICE_COUNT_FLAG not in os.environ.get('XLA_FLAGS', ''):
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else (
+            os.cpu_count() or 1)
+        os.environ['XLA_FLAGS'] = (os.environ.get('XLA_FLAGS', '') +
+                                   f' {DEVICE_COUNT_FLAG}={cores}').strip()
     import jax
 
     return jax
@@ -120,6 +138,8 @@ class ForecastEngine:
         self._mode = model.bound_mode
         self._physical = _physical_step(model.physical, dtype)
         self._compiled = jax.jit(self._forecast)
+        self.devices = jax.devices('cpu')
+        self._device_params = [jax.device_put(self._params, d) for d in self.devices]
 
     @classmethod
     def from_checkpoint(cls, path: str | Path, dtype=np.float32) -> ForecastEngine:
@@ -214,9 +234,23 @@ class ForecastEngine:
         if padded > batch:
             pad = np.repeat(c_future[-1:], padded - batch, axis=0)
             c_future = np.concatenate([c_future, pad], axis=0)
-        hybrid, physics = self._compiled(self._params, z_window, c_window, c_future)
-        return Forecast(np.asarray(hybrid, np.float64)[:batch],
-                        np.asarray(physics, np.float64)[:batch])
+        shards = self._shards(padded)
+        size = padded // shards
+        jax = _jax()
+        # Dispatch is asynchronous: every shard is running before the first is read.
+        running = [self._compiled(self._device_params[k], *jax.device_put(
+            (z_window, c_window, c_future[k * size:(k + 1) * size]), self.devices[k]))
+            for k in range(shards)]
+        hybrid = np.concatenate([np.asarray(h, np.float64) for h, _ in running])
+        physics = np.concatenate([np.asarray(p, np.float64) for _, p in running])
+        return Forecast(hybrid[:batch], physics[:batch])
+
+    def _shards(self, padded: int) -> int:
+        """Return how many devices a padded batch is split across (it divides evenly)."""
+        shards = min(len(self.devices), padded // MIN_SHARD)
+        while shards > 1 and padded % shards:
+            shards -= 1
+        return max(shards, 1)
 
     batch_buckets = (1, 4, 16, 64, 256)
 
