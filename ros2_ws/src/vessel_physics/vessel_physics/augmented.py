@@ -5,6 +5,7 @@ A physics file says which physics a model or the diagnosis tool assumes. It is Y
 
     format: vessel-physics/1
     vessel: patrol_vessel.yaml     # parameter file: beside this file, then the package's
+                                   # (or a mapping of the parameter values themselves)
     terms: [rigid_body_coriolis, restoring, hull_damping, propulsion, wind]
     extra_terms:                   # optional: coefficient * term, on the DOFs listed
       - {term: relative_wind_sway, dofs: Y, coefficient: 212.0}
@@ -125,10 +126,16 @@ class Physics:
         """Return a copy with fields changed (``params``, ``terms``, ``extra_terms``, ...)."""
         return dataclasses.replace(self, **changes)
 
-    def to_dict(self, vessel_file: str | None = None) -> dict:
-        """Return the YAML mapping of this physics (``vessel_file`` names the vessel)."""
-        out = {'format': FORMAT, 'vessel': vessel_file or self.vessel_file or self.params.name,
-               'terms': list(self.terms)}
+    def to_dict(self, vessel_file: str | None = None, inline_vessel: bool = False) -> dict:
+        """
+        Return the YAML mapping of this physics.
+
+        ``vessel_file`` names the vessel; with ``inline_vessel`` the parameter values
+        themselves stand there instead (self-contained, as checkpoints keep it).
+        """
+        vessel = (dataclasses.asdict(self.params) if inline_vessel
+                  else vessel_file or self.vessel_file or self.params.name)
+        out = {'format': FORMAT, 'vessel': vessel, 'terms': list(self.terms)}
         if self.extra_terms:
             out['extra_terms'] = [t.to_dict() for t in self.extra_terms]
         if self.environment:
@@ -187,9 +194,14 @@ def physics_from_dict(data: Mapping, base: Path | None = None,
             raise ConfigError(f'{source}: unknown key {key!r}{did_you_mean(str(key), _KEYS)}; '
                               f'allowed keys: {", ".join(_KEYS)}')
     if 'vessel' not in data:
-        raise ConfigError(f'{source}: vessel: missing (a vessel parameter file name or path)')
-    vessel = str(data['vessel'])
-    params = load_named_vessel(vessel, base)
+        raise ConfigError(f'{source}: vessel: missing (a vessel parameter file name or path, '
+                          f'or the parameter values)')
+    if isinstance(data['vessel'], Mapping):
+        # Inline values: what checkpoints store, so that a model never needs the file.
+        vessel, params = None, params_from_dict(dict(data['vessel']), f'{source}: vessel')
+    else:
+        vessel = str(data['vessel'])
+        params = load_named_vessel(vessel, base)
     terms = data.get('terms', list(SIMULATOR_TERMS))
     if not isinstance(terms, list) or not all(isinstance(t, str) for t in terms):
         raise ConfigError(f'{source}: terms: expected a list of term names, got {terms!r}')

@@ -3,6 +3,8 @@ Physical models: first-principles (Min, Pro), regression (Lin, Hyd, Qua), combin
 
 ``build_physical({'kind': 'pro+lin', ...}, spec)`` makes any of them; kinds are written
 like the paper's names in lower case: 'min', 'pro', 'lin', 'hyd', 'qua', 'min+lin', ...
+Kind 'physics' is the first-principles model of a physics file (``physics: PATH``), such
+as the augmented physics the diagnosis writes; 'physics+lin' etc. combine it too.
 """
 
 from __future__ import annotations
@@ -13,7 +15,7 @@ from hybrid_models.physical.regression import RegressionModel
 from hybrid_models.vehicle import VehicleSpec
 
 REGRESSION_KINDS = ('lin', 'hyd', 'qua')
-FIRST_PRINCIPLES_KINDS = ('min', 'pro')
+FIRST_PRINCIPLES_KINDS = ('min', 'pro', 'physics')
 
 __all__ = ['PhysicalModel', 'CompositeModel', 'RegressionModel', 'build_physical',
            'REGRESSION_KINDS', 'FIRST_PRINCIPLES_KINDS']
@@ -26,7 +28,9 @@ def build_physical(cfg: dict, spec: VehicleSpec) -> PhysicalModel:
     Keys: ``kind``; for regressions ``ridge`` (relative, default 1e-8) and ``masks``
     ('coupled' or 'diagonal', Hyd only); for first principles ``params`` (YAML path,
     default the nominal vessel), ``vessel`` (parameter values, as stored in checkpoints;
-    they win over ``params``) and ``substeps`` (RK4 sub-steps per sample period).
+    they win over ``params``), ``physics`` (kind 'physics': a physics file's path or
+    mapping; ``physics_source`` where a stored mapping came from) and ``substeps`` (RK4
+    sub-steps per sample period).
     """
     kind = str(cfg.get('kind', '')).lower()
     parts = kind.split('+')
@@ -46,5 +50,7 @@ def build_physical(cfg: dict, spec: VehicleSpec) -> PhysicalModel:
     # Imported here so that regression-only models work without the vessel physics.
     from hybrid_models.physical.first_principles import build_first_principles
     fp = build_first_principles(fp_kind, spec, params=cfg.get('params'),
-                                substeps=int(cfg.get('substeps', 4)), vessel=cfg.get('vessel'))
+                                substeps=int(cfg.get('substeps', 4)), vessel=cfg.get('vessel'),
+                                physics=cfg.get('physics'),
+                                physics_source=cfg.get('physics_source'))
     return fp if regression is None else CompositeModel(fp, regression)

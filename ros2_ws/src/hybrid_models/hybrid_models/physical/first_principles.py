@@ -1,5 +1,5 @@
 """
-First-principles models Min and Pro, built from ``vessel_physics`` force terms.
+First-principles models Min, Pro and a physics file, built from ``vessel_physics`` terms.
 
 Both integrate M [u, v, p, r]' = sum of named terms (z, c), phi' = p over one sample
 period with classical RK4 sub-steps (``vessel_physics.integrator.rk4_step``), the
@@ -10,6 +10,9 @@ at dt = 1 s.
 - Min (Baier et al.): rigid-body Coriolis and linearized restoring -G eta with the mass
   matrix including added mass; no damping, no control forces.
 - Pro: Min plus the twin rudder-propeller thrust.
+- Physics: the terms and discovered extra terms of a physics file
+  (``vessel_physics.augmented``), e.g. the nominal physics or the augmented physics that
+  ``offline/diagnose.py`` writes; the checkpoint keeps the whole file inline.
 
 The terms are written against the Array API, so this module holds no physics of its
 own: it picks terms, sub-steps and parameters (default: the nominal vessel).
@@ -24,12 +27,14 @@ import torch
 from hybrid_models.physical.base import PhysicalModel
 from hybrid_models.vehicle import VehicleSpec
 from vessel_physics.arrays import namespace
+from vessel_physics.augmented import Physics, load_physics, physics_from_dict
 from vessel_physics.integrator import rk4_step
 from vessel_physics.mass import accelerations
-from vessel_physics.params import VesselParams, load_named_vessel, params_from_dict
-from vessel_physics.terms import MIN_TERMS, PRO_TERMS, total_force
+from vessel_physics.params import load_named_vessel, params_from_dict
+from vessel_physics.terms import MIN_TERMS, PRO_TERMS
 
 TERM_SETS = {'min': MIN_TERMS, 'pro': PRO_TERMS}
+PHYSICS_FILE_KIND = 'physics'
 DEFAULT_PARAMS = 'nominal_vessel'
 ROLL_RATE, ROLL_ANGLE = 2, 4   # columns of z = [u, v, p, r, phi]
 
@@ -37,7 +42,7 @@ ROLL_RATE, ROLL_ANGLE = 2, 4   # columns of z = [u, v, p, r, phi]
 class FirstPrinciplesModel(PhysicalModel):
     """Named force terms, the mass matrix and RK4 sub-steps over one sample period."""
 
-    def __init__(self, spec: VehicleSpec, kind: str, params: VesselParams,
+    def __init__(self, spec: VehicleSpec, kind: str, physics: Physics,
                  params_source: str = DEFAULT_PARAMS, substeps: int = 4):
         super().__init__(spec)
         if spec.state_names != ('u', 'v', 'p', 'r', 'phi'):
@@ -45,14 +50,19 @@ class FirstPrinciplesModel(PhysicalModel):
                              f'got {spec.state_names}')
         if substeps < 1:
             raise ValueError(f'substeps must be >= 1, got {substeps}')
-        self.kind, self.terms = kind, TERM_SETS[kind]
-        self.params, self.params_source = params, params_source
+        self.kind, self.physics = kind, physics
+        self.params, self.params_source = physics.params, params_source
         self.substeps = int(substeps)
+
+    @property
+    def terms(self) -> tuple[str, ...]:
+        """Return the names of the registered terms summed (extra terms come on top)."""
+        return self.physics.terms
 
     def derivative(self, z, c):
         """Z' = [M^-1 tau(z, c), p] (FRD; m/s^2, rad/s^2, rad/s), on Array API arrays."""
         xp = namespace(z, c)
-        acc = accelerations(total_force(self.terms, z, c, self.params), self.params)
+        acc = accelerations(self.physics.force(z, c), self.params)
         return xp.concat([acc, z[..., ROLL_RATE:ROLL_RATE + 1]], axis=-1)
 
     def array_step(self, z, c, repeat=None):
@@ -85,14 +95,43 @@ class FirstPrinciplesModel(PhysicalModel):
 
     def describe(self) -> dict:
         """Return the construction arguments, including every parameter value."""
+        if self.kind == PHYSICS_FILE_KIND:
+            return {'kind': self.kind, 'physics_source': self.params_source,
+                    'substeps': self.substeps,
+                    'physics': self.physics.to_dict(inline_vessel=True)}
         return {'kind': self.kind, 'params': self.params_source, 'substeps': self.substeps,
                 'vessel': asdict(self.params)}
 
 
 def build_first_principles(kind: str, spec: VehicleSpec, params: str | None = None,
-                           substeps: int = 4, vessel: dict | None = None
-                           ) -> FirstPrinciplesModel:
-    """Min or Pro with parameters from ``vessel`` values, a YAML name/path, or nominal."""
+                           substeps: int = 4, vessel: dict | None = None,
+                           physics: str | dict | None = None,
+                           physics_source: str | None = None) -> FirstPrinciplesModel:
+    """
+    Min or Pro, or the physics of a physics file.
+
+    Min and Pro take their parameters from ``vessel`` values, a YAML name/path
+    (``params``), or the nominal vessel. Kind 'physics' needs ``physics``: a physics
+    file's path, or its mapping (as ``describe`` stores it, with ``physics_source``
+    naming where it came from).
+    """
+    if kind == PHYSICS_FILE_KIND:
+        if physics is None:
+            raise ValueError("physical model 'physics' needs a physics file: set "
+                             "model.physical.physics to its path (e.g. the "
+                             'augmented_physics.yaml that offline/diagnose.py writes)')
+        if isinstance(physics, dict):
+            source = physics_source or '<inline physics>'
+            spec_physics = physics_from_dict(physics, source=source)
+        else:
+            source, spec_physics = str(physics), load_physics(physics)
+        # Per-run environment (e.g. each recording's current) does not carry to new runs.
+        return FirstPrinciplesModel(spec, kind, spec_physics.replace(environment={}), source,
+                                    substeps)
+    if kind not in TERM_SETS:
+        raise ValueError(f'unknown first-principles model {kind!r}; use '
+                         f'{sorted(TERM_SETS) + [PHYSICS_FILE_KIND]}')
     source = params or DEFAULT_PARAMS
     values = params_from_dict(vessel, source) if vessel else load_named_vessel(source)
-    return FirstPrinciplesModel(spec, kind, values, source, substeps)
+    return FirstPrinciplesModel(spec, kind, Physics(values, TERM_SETS[kind], source=source),
+                                source, substeps)
