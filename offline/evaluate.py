@@ -125,7 +125,8 @@ def main(argv=None) -> int:
         state_std = np.asarray(cfg['normalization']['state']['std'])
         sweep = threshold_sweep(model, windows, spec, state_std, args.thresholds)
         result['threshold_sweep'] = {'label': args.sweep, 'rows': sweep}
-        report.plot_threshold(args.out / 'rmse_vs_threshold.png', spec, sweep, args.sweep)
+        report.plot_threshold(args.out / 'rmse_vs_threshold.png', spec,
+                              {args.sweep: sweep}, args.sweep)
     (args.out / 'results.json').write_text(json.dumps(result, indent=2))
     (args.out / 'table.md').write_text(report.markdown_table(rows, spec))
     drawn = {k: v for k, v in preds.items() if not args.plot or k in args.plot}

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from hybrid_models.bound import apply_bound, half_width, output_range
+from hybrid_models.evaluation import smallest_threshold
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import build_physical
 from hybrid_models.vehicle import SHIP
@@ -78,3 +79,21 @@ def test_threshold_needs_the_output_range():
     model = HybridModel(SHIP, build_physical({'kind': 'lin'}, SHIP), hidden=4)
     with pytest.raises(ValueError, match='output_range'):
         model.set_threshold(0.15)
+
+
+def sweep_row(threshold, u, v, diverged=False):
+    return {'relative_threshold': threshold, 'diverged': diverged, 'rmse': {'u': u, 'v': v}}
+
+
+def test_smallest_threshold_needs_every_state_within_the_tolerance():
+    sweep = [sweep_row(None, 0.10, 0.05), sweep_row(0.0, 0.30, 0.05),
+             sweep_row(0.02, 0.104, 0.06), sweep_row(0.05, 0.104, 0.0524),
+             sweep_row(0.1, 0.101, 0.050)]
+    reference = {'u': 0.10, 'v': 0.05}
+    assert smallest_threshold(sweep, reference, 0.05) == 0.05      # 0.02 fails on v
+    assert smallest_threshold(sweep, reference, 0.0) is None       # only the free row is exact
+    assert smallest_threshold(sweep, {'u': 0.30, 'v': 0.05}, 0.0) == 0.0   # physics alone
+    diverged = [sweep_row(0.05, 0.1, 0.05, diverged=True), sweep_row(0.2, 0.1, 0.05)]
+    assert smallest_threshold(diverged, reference, 0.05) == 0.2
+    with pytest.raises(ValueError, match='tolerance'):
+        smallest_threshold(sweep, reference, -0.1)

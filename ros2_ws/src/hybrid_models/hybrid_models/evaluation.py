@@ -86,6 +86,25 @@ def threshold_sweep(model: HybridModel, windows: Windows, spec: VehicleSpec,
     return rows
 
 
+def smallest_threshold(sweep: list[dict], reference_rmse: dict, tolerance: float
+                       ) -> float | None:
+    """
+    Return the smallest relative threshold whose accuracy matches a reference.
+
+    "Matches": every per-state RMSE of the sweep row is at most (1 + ``tolerance``) times
+    the reference's (e.g. the unconstrained model's). Rows at threshold None
+    (unconstrained) never count; a diverged row never matches. None when no row does.
+    """
+    if tolerance < 0:
+        raise ValueError(f'tolerance must be >= 0, got {tolerance}')
+    matching = [
+        row['relative_threshold'] for row in sweep
+        if row['relative_threshold'] is not None and not row.get('diverged')
+        and all(row['rmse'][s] is not None and row['rmse'][s] <= (1 + tolerance) * ref
+                for s, ref in reference_rmse.items())]
+    return min(matching) if matching else None
+
+
 @torch.no_grad()
 def residual_share(model: HybridModel, windows: Windows) -> dict:
     """How much the LSTM contributes: mean |residual| / bound and the fraction near it."""

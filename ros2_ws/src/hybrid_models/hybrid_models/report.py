@@ -7,6 +7,7 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use('Agg')
+from matplotlib import ticker  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -120,23 +121,47 @@ def plot_error_per_minute(path: Path, spec: VehicleSpec, true: np.ndarray,
     plt.close(fig)
 
 
-def plot_threshold(path: Path, spec: VehicleSpec, sweep: list[dict], label: str) -> None:
-    """Per-state RMSE against the relative threshold; dashed: unconstrained."""
-    free = next(r for r in sweep if r['relative_threshold'] is None)
-    rows = [r for r in sweep if r['relative_threshold'] is not None]
-    ts = [100 * r['relative_threshold'] for r in rows]
-    fig, axes = plt.subplots(1, spec.n_state, figsize=(3.2 * spec.n_state, 3))
-    for ax, s, u in zip(axes, spec.state_names, spec.state_units, strict=True):
-        vals = [np.nan if r['rmse'][s] is None else r['rmse'][s] for r in rows]
-        ax.plot(ts, vals, 'o-', color='C1', label='constrained')
-        if free['rmse'][s] is not None:
-            ax.axhline(free['rmse'][s], color='C0', ls='--', label='unconstrained')
+def plot_threshold(path: Path, spec: VehicleSpec, sweeps: dict[str, list[dict]],
+                   title: str) -> None:
+    """
+    Per-state RMSE and trajectory error against the relative threshold, one line per sweep.
+
+    ``sweeps`` maps a label to ``threshold_sweep`` rows; a row at threshold 0 (physics
+    only) is drawn at the left edge, the unconstrained row as a dashed line.
+    """
+    names = list(spec.state_names) + ['trajectory']
+    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2))
+    for k, (label, sweep) in enumerate(sweeps.items()):
+        color = f'C{k}'
+        free = next((r for r in sweep if r['relative_threshold'] is None), None)
+        rows = sorted((r for r in sweep if r['relative_threshold'] is not None),
+                      key=lambda r: r['relative_threshold'])
+        positive = [r['relative_threshold'] for r in rows if r['relative_threshold'] > 0]
+        floor = min(positive) / 2 if positive else 1e-3
+        ts = [100 * (r['relative_threshold'] or floor) for r in rows]
+        for ax, name in zip(axes, names, strict=True):
+            def value(row, name=name):
+                if name == 'trajectory':
+                    return row['trajectory'].get('mean') or np.nan
+                return np.nan if row['rmse'][name] is None else row['rmse'][name]
+            ax.plot(ts, [value(r) for r in rows], 'o-', color=color, ms=3,
+                    label=f'{label}, constrained')
+            if free is not None:
+                ax.axhline(value(free), color=color, ls='--', lw=1,
+                           label=f'{label}, unconstrained')
+    units = dict(zip(spec.state_names, spec.state_units, strict=True), trajectory='m')
+    for ax, name in zip(axes, names, strict=True):
         ax.set_xscale('log')
+        ax.xaxis.set_major_locator(ticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+        ax.xaxis.set_major_formatter(ticker.FormatStrFormatter('%g'))
+        ax.xaxis.set_minor_formatter(ticker.NullFormatter())
         ax.set_xlabel('relative threshold [%]')
-        ax.set_title(f'{s} RMSE [{u}]')
+        ax.set_title(f'{name} {"error" if name == "trajectory" else "RMSE"} [{units[name]}]')
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(label)
+    axes[0].legend(fontsize=6)
+    fig.suptitle(f'{title} (leftmost point: the physics alone, threshold 0)'
+                 if any(r['relative_threshold'] == 0 for sweep in sweeps.values()
+                        for r in sweep) else title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
