@@ -1,7 +1,7 @@
 """
 First-principles models Min, Pro and a physics file, built from ``vessel_physics`` terms.
 
-Both integrate M [u, v, p, r]' = sum of named terms (z, c), phi' = p over one sample
+Each integrates M [u, v, p, r]' = sum of named terms (z, c), phi' = p over one sample
 period with classical RK4 sub-steps (``vessel_physics.integrator.rk4_step``), the
 control held constant (zero-order hold). The roll angle integrates the roll RATE p;
 the authors' library used the roll acceleration there, and stepped explicit Euler
@@ -53,11 +53,6 @@ class FirstPrinciplesModel(PhysicalModel):
         self.kind, self.physics = kind, physics
         self.params, self.params_source = physics.params, params_source
         self.substeps = int(substeps)
-
-    @property
-    def terms(self) -> tuple[str, ...]:
-        """Return the names of the registered terms summed (extra terms come on top)."""
-        return self.physics.terms
 
     def derivative(self, z, c):
         """Z' = [M^-1 tau(z, c), p] (FRD; m/s^2, rad/s^2, rad/s), on Array API arrays."""
@@ -122,11 +117,11 @@ def build_first_principles(kind: str, spec: VehicleSpec, params: str | None = No
                              'augmented_physics.yaml that offline/diagnose.py writes)')
         if isinstance(physics, dict):
             source = physics_source or '<inline physics>'
-            spec_physics = physics_from_dict(physics, source=source)
+            loaded = physics_from_dict(physics, source=source)
         else:
-            source, spec_physics = str(physics), load_physics(physics)
+            source, loaded = str(physics), load_physics(physics)
         # Per-run environment (e.g. each recording's current) does not carry to new runs.
-        return FirstPrinciplesModel(spec, kind, spec_physics.replace(environment={}), source,
+        return FirstPrinciplesModel(spec, kind, loaded.replace(environment={}), source,
                                     substeps)
     if kind not in TERM_SETS:
         raise ValueError(f'unknown first-principles model {kind!r}; use '
