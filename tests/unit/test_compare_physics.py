@@ -57,13 +57,16 @@ def test_the_same_hybrid_on_better_physics(fouled):
     assert physics_only['augmented']['rmse']['u'] < physics_only['nominal']['rmse']['u']
     need = res['needed_thresholds']
     for label in models:
-        assert set(need[label]) == {'for_reference_accuracy', 'for_own_unconstrained_accuracy'}
+        assert set(need[label]) == {'for_reference_accuracy', 'for_own_unconstrained_accuracy',
+                                    'for_reference_per_state', 'for_reference_trajectory'}
+        assert set(need[label]['for_reference_per_state']) == {'u', 'v', 'p', 'r', 'phi'}
         assert need[label]['for_own_unconstrained_accuracy'] in (0.0, 0.05, 0.5, None)
     # The checkpoints carry their physics: the augmented one has the extra term inline.
     stored = yaml.safe_load((out / 'runs' / 'augmented' / 'config.yaml').read_text())
     assert stored['model']['physical']['kind'] == 'physics'
     report = (out / 'report.md').read_text()
     assert '| augmented | `augmented.yaml` |' in report
+    assert '| physics | u | v | p | r | phi | trajectory |' in report
     assert (out / 'threshold_comparison.png').stat().st_size > 10_000
     assert np.isfinite(models['augmented']['output_range']).all()
 

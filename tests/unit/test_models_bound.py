@@ -7,7 +7,7 @@ import pytest
 import torch
 
 from hybrid_models.bound import apply_bound, half_width, output_range
-from hybrid_models.evaluation import smallest_threshold
+from hybrid_models.evaluation import smallest_threshold, trajectory_of
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import build_physical
 from hybrid_models.vehicle import SHIP
@@ -81,8 +81,9 @@ def test_threshold_needs_the_output_range():
         model.set_threshold(0.15)
 
 
-def sweep_row(threshold, u, v, diverged=False):
-    return {'relative_threshold': threshold, 'diverged': diverged, 'rmse': {'u': u, 'v': v}}
+def sweep_row(threshold, u, v, diverged=False, trajectory=100.0):
+    return {'relative_threshold': threshold, 'diverged': diverged, 'rmse': {'u': u, 'v': v},
+            'trajectory': {'mean': trajectory}}
 
 
 def test_smallest_threshold_needs_every_state_within_the_tolerance():
@@ -97,3 +98,11 @@ def test_smallest_threshold_needs_every_state_within_the_tolerance():
     assert smallest_threshold(diverged, reference, 0.05) == 0.2
     with pytest.raises(ValueError, match='tolerance'):
         smallest_threshold(sweep, reference, -0.1)
+
+
+def test_smallest_threshold_on_the_trajectory_error():
+    sweep = [sweep_row(0.0, 0.3, 0.1, trajectory=480.0), sweep_row(0.05, 0.2, 0.1, trajectory=90),
+             sweep_row(0.3, 0.1, 0.05, trajectory=41.0), sweep_row(None, 0.1, 0.05, trajectory=40)]
+    assert smallest_threshold(sweep, {'trajectory': 40.0}, 0.05, trajectory_of) == 0.3
+    assert smallest_threshold(sweep, {'trajectory': 500.0}, 0.05, trajectory_of) == 0.0
+    assert smallest_threshold(sweep, {'u': 0.1}, 0.05) == 0.3           # one state alone

@@ -86,22 +86,36 @@ def threshold_sweep(model: HybridModel, windows: Windows, spec: VehicleSpec,
     return rows
 
 
-def smallest_threshold(sweep: list[dict], reference_rmse: dict, tolerance: float
-                       ) -> float | None:
+def rmse_of(row: dict) -> dict:
+    """Return a sweep row's per-state RMSE (what ``smallest_threshold`` compares by default)."""
+    return row['rmse']
+
+
+def trajectory_of(row: dict) -> dict:
+    """Return a sweep row's mean trajectory error, as {'trajectory': metres}."""
+    return {'trajectory': row['trajectory'].get('mean')}
+
+
+def smallest_threshold(sweep: list[dict], reference: dict, tolerance: float,
+                       figures=rmse_of) -> float | None:
     """
     Return the smallest relative threshold whose accuracy matches a reference.
 
-    "Matches": every per-state RMSE of the sweep row is at most (1 + ``tolerance``) times
-    the reference's (e.g. the unconstrained model's). Rows at threshold None
-    (unconstrained) never count; a diverged row never matches. None when no row does.
+    "Matches": every figure named in ``reference`` (by default per-state RMSEs; e.g. the
+    unconstrained model's) is at most (1 + ``tolerance``) times the reference's, with
+    ``figures(row)`` giving a row's figures. Rows at threshold None (unconstrained) never
+    count; a diverged row never matches. None when no row does.
     """
     if tolerance < 0:
         raise ValueError(f'tolerance must be >= 0, got {tolerance}')
-    matching = [
-        row['relative_threshold'] for row in sweep
-        if row['relative_threshold'] is not None and not row.get('diverged')
-        and all(row['rmse'][s] is not None and row['rmse'][s] <= (1 + tolerance) * ref
-                for s, ref in reference_rmse.items())]
+    matching = []
+    for row in sweep:
+        if row['relative_threshold'] is None or row.get('diverged'):
+            continue
+        got = figures(row)
+        if all(got[k] is not None and got[k] <= (1 + tolerance) * ref
+               for k, ref in reference.items()):
+            matching.append(row['relative_threshold'])
     return min(matching) if matching else None
 
 
