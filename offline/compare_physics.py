@@ -44,8 +44,8 @@ from hybrid_models.evaluation import (  # noqa: E402
     threshold_sweep,
     trajectory_of,
 )
-from hybrid_models.training.train import vehicle  # noqa: E402
-from training_jobs import MODEL_FILE, train_job  # noqa: E402
+from hybrid_models.training.train import MODEL_FILE, vehicle  # noqa: E402
+from training_jobs import train_job  # noqa: E402
 from vessel_physics.augmented import load_physics  # noqa: E402
 from vessel_physics.errors import ConfigError  # noqa: E402
 

@@ -12,9 +12,9 @@ import sys
 import time
 
 from hybrid_models.checkpoint import CheckpointError, read_header
+from hybrid_models.training import MODEL_FILE
 
 TRAIN_SCRIPT = Path(__file__).resolve().parent / 'train.py'
-MODEL_FILE = 'model.safetensors'
 
 
 def finished(run_dir: Path) -> bool:
