@@ -2,10 +2,12 @@
 """
 Convert rosbag2 recordings (MCAP, also damaged ones) into a training dataset.
 
-Reads rosbag2 directories, bare .mcap files, several, or folders of them; needs no ROS
-installation. Fields are picked by a topic map (YAML; default: the simulator's topics),
-converted from the ROS frames (ENU/FLU) to the model's (NED/FRD), resampled to a fixed
-rate and split into runs wherever a topic has a gap. NaN, duplicate and out-of-order
+Reads rosbag2 directories (MCAP or sqlite3), bare .mcap/.db3 files, several, or
+folders of them; needs no ROS installation. The vessel file (--vessel) says which
+states and actuators the vessel has, its sample rate and which topic and field gives
+each quantity (its recordings.topics map; --topic-map overrides it). Fields are
+converted from the ROS frames (ENU/FLU) to the model's (NED/FRD), resampled to the
+vessel's rate and split into runs wherever a topic has a gap. NaN, duplicate and out-of-order
 samples are dropped and counted; what damaged files lost is reported line by line.
 Writes docs/conventions.md's dataset format; the manifest records the source files
 with their SHA-256, the topic map, rate, gaps, split and drop counts.
@@ -14,8 +16,10 @@ Exit status: 0 when a dataset was written (warnings go to stderr), 1 when nothin
 usable remained, 2 on a usage error.
 
 examples:
-  bag_to_dataset.py rosbag2_2024_05_01/ --out data/trial1
-  bag_to_dataset.py recordings/ --out data/fleet --topic-map my_vessel.yaml --jobs 2
+  bag_to_dataset.py rosbag2_2024_05_01/ --vessel patrol_boat --out data/trial1
+  bag_to_dataset.py recordings/ --vessel my_vessel.yaml --out data/fleet --jobs 2
+  bag_to_dataset.py humble_bags/ --vessel my_vessel.yaml --out data/boat --msg-dir msgs/
+      (--msg-dir: .msg files of custom types that Humble sqlite3 bags carry no definition of)
 """
 
 import argparse
@@ -26,9 +30,10 @@ import sys
 from tqdm import tqdm
 
 from vessel_datasets import format as fmt
-from vessel_datasets.bag_source import BagError
+from vessel_datasets.bag_source import BagError, MessageDefinitionError, MessageDefinitions
 from vessel_datasets.convert import BagResult, Options, convert_bags, write
-from vessel_datasets.topic_map import TopicMapError, load_topic_map
+from vessel_datasets.topic_map import TopicMapError, topic_map_for
+from vessel_description import VesselError, load_vessel
 
 EXIT_OK, EXIT_NOTHING, EXIT_USAGE = 0, 1, 2
 
@@ -42,10 +47,12 @@ def parse_args(argv):
                         help='rosbag2 directory, .mcap file, or a folder of them')
     parser.add_argument('--out', required=True, metavar='DATASET',
                         help='dataset directory to write')
+    parser.add_argument('--vessel', required=True, metavar='FILE',
+                        help='vessel description (YAML), or the name of a shipped one '
+                             "(e.g. patrol_boat, the simulator's)")
     parser.add_argument('--topic-map', metavar='YAML',
-                        help='which topic/field gives each quantity (default: simulator)')
-    parser.add_argument('--rate', type=float, dest='rate_hz', metavar='HZ',
-                        help=f'sampling rate of the dataset (default {defaults.rate_hz})')
+                        help='which topic/field gives each quantity, replacing the vessel '
+                             "file's recordings.topics"),
     parser.add_argument('--time-source', choices=('header', 'log'),
                         help=f'header stamps or log (receive) times '
                              f'(default {defaults.time_source})')
@@ -58,12 +65,24 @@ def parse_args(argv):
     parser.add_argument('--split', metavar='TRAIN,VAL,TEST',
                         help='fractions of runs per split (default '
                              + ','.join(f'{f:g}' for f in defaults.split) + ')')
+    parser.add_argument('--msg-dir', action='append', default=[], dest='msg_dirs',
+                        metavar='DIR',
+                        help='folder of .msg files (searched recursively) for the message '
+                             'types a bag does not define (sqlite3 bags recorded before ROS 2 '
+                             'Iron define none); <pkg>/msg/Name.msg defines pkg/msg/Name; '
+                             'may be repeated')
+    parser.add_argument('--msg-package', metavar='NAME',
+                        help='package of the .msg files in --msg-dir that are not in a '
+                             '<pkg>/msg/ folder')
     parser.add_argument('--jobs', type=int, default=1, metavar='N',
                         help='convert N bags at a time in separate processes (default 1)')
     parser.add_argument('--overwrite', action='store_true',
                         help='replace an existing dataset in --out')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
     args = parser.parse_args(argv)
+    if args.msg_package and not args.msg_dirs:
+        parser.error('--msg-package names the package of the .msg files of --msg-dir; '
+                     'give --msg-dir too')
     split = None
     if args.split:
         try:
@@ -71,10 +90,8 @@ def parse_args(argv):
         except ValueError:
             parser.error(f'--split wants three numbers like 0.6,0.1,0.3, got {args.split!r}')
     try:
-        opts = Options.from_yaml(rate_hz=args.rate_hz, time_source=args.time_source,
-                                 max_gap_s=args.max_gap_s, min_run_s=args.min_run_s,
-                                 seed=args.seed, split=split)
-        opts.check()
+        opts = Options.from_yaml(time_source=args.time_source, max_gap_s=args.max_gap_s,
+                                 min_run_s=args.min_run_s, seed=args.seed, split=split)
         fmt.split_runs([], opts.seed, opts.split)  # validates the fractions
     except (ValueError, fmt.DatasetError) as exc:
         parser.error(str(exc))
@@ -86,8 +103,14 @@ def main(argv=None) -> int:
     args, opts = parse_args(argv)
     out = Path(args.out)
     try:
-        topic_map = load_topic_map(args.topic_map)
-    except TopicMapError as exc:
+        topic_map = topic_map_for(load_vessel(args.vessel), args.topic_map)
+        opts.check(topic_map.vessel.rate_hz)
+    except (VesselError, TopicMapError, ValueError) as exc:
+        print(f'error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    try:
+        definitions = MessageDefinitions(args.msg_dirs, args.msg_package)
+    except MessageDefinitionError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return EXIT_USAGE
     if (out / fmt.MANIFEST).exists() or (out / fmt.RUNS_DIR).exists():
@@ -103,7 +126,8 @@ def main(argv=None) -> int:
                mininterval=0.5)
     try:
         results = convert_bags(args.bags, topic_map, opts, jobs=args.jobs,
-                               progress=bar.update, on_result=lambda r: _announce(r, bar))
+                               progress=bar.update, on_result=lambda r: _announce(r, bar),
+                               definitions=definitions)
     except BagError as exc:
         bar.close()
         print(f'error: {exc}', file=sys.stderr)
@@ -113,7 +137,8 @@ def main(argv=None) -> int:
     if not any(r.runs for r in results):
         print('error: nothing usable remained; no dataset written', file=sys.stderr)
         return EXIT_NOTHING
-    manifest = write(out, results, topic_map, opts, argv=sys.argv if argv is None else argv)
+    manifest = write(out, results, topic_map, opts, argv=sys.argv if argv is None else argv,
+                     definitions=definitions)
     _summary(results, manifest)
     return EXIT_OK
 

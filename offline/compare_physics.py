@@ -27,7 +27,7 @@ import sys
 import time
 
 ROOT = Path(__file__).resolve().parents[1]
-for _pkg in ('hybrid_models', 'vessel_physics', 'vessel_datasets'):
+for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_datasets'):
     sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
 
 import numpy as np  # noqa: E402
@@ -44,7 +44,9 @@ from hybrid_models.evaluation import (  # noqa: E402
     threshold_sweep,
     trajectory_of,
 )
-from hybrid_models.training.train import MODEL_FILE, vehicle  # noqa: E402
+from hybrid_models.training.config import evaluation_protocol  # noqa: E402
+from hybrid_models.training.train import MODEL_FILE  # noqa: E402
+from hybrid_models.vehicle import VehicleSpec  # noqa: E402
 from training_jobs import train_job  # noqa: E402
 from vessel_physics.augmented import load_physics  # noqa: E402
 from vessel_physics.errors import ConfigError  # noqa: E402
@@ -82,10 +84,12 @@ def parse_args(argv):
     parser.add_argument('--threads', type=int, default=2, help='cores to use in total')
     parser.add_argument('--time-limit-minutes', type=float,
                         help="cap each training (default: the config's)")
-    parser.add_argument('--window', type=int, default=60, help='initialization window')
-    parser.add_argument('--horizon', type=int, default=900, help='forecast length (samples)')
-    parser.add_argument('--stride', type=int, default=120,
-                        help='samples between forecast starts (default 120)')
+    parser.add_argument('--window', type=int,
+                        help="initialization window (samples; default: the vessel's)")
+    parser.add_argument('--horizon', type=int,
+                        help="forecast length (samples; default: the vessel's horizon)")
+    parser.add_argument('--stride', type=int,
+                        help='samples between forecast starts (default: horizon/7.5)')
     args = parser.parse_args(argv)
     labels = [label for label, _ in args.physics]
     if len(set(labels)) != len(labels) or len(labels) < 2:
@@ -243,7 +247,9 @@ def main(argv=None) -> int:
     except CheckpointError as exc:
         print(f'compare_physics: error: {exc}', file=sys.stderr)
         return 1
-    spec = vehicle(cfg['vehicle']['name'])
+    spec = VehicleSpec.from_dict(cfg['vehicle'])
+    args.window, args.horizon, args.stride = evaluation_protocol(spec, args.window,
+                                                                 args.horizon, args.stride)
     evaluated = evaluate_all(args, spec)
     result = {'dataset': {'path': str(args.dataset), 'sha256': dataset_hash(args.dataset)},
               'physics': {label: str(path) for label, path in args.physics},

@@ -28,11 +28,11 @@ from pathlib import Path
 import sys
 import time
 
-from vessel_datasets.topic_map import TopicMapError, load_topic_map
+from vessel_datasets.topic_map import TopicMapError, topic_map_for
 from vessel_diagnosis.findings import SCHEMA, STATUS
 from vessel_diagnosis.library import LibraryError, load_library
 from vessel_diagnosis.pipeline import InsufficientDataError, diagnose
-from vessel_diagnosis.recordings import RecordingsError
+from vessel_diagnosis.recordings import DIAGNOSED_VESSEL, RecordingsError
 from vessel_diagnosis.settings import SettingsError, config_dir, load_settings
 from vessel_physics.errors import ConfigError
 
@@ -86,7 +86,8 @@ def main(argv=None) -> int:
     try:
         settings = load_settings(args.config)
         library = load_library(args.library)
-        topic_map = load_topic_map(args.topic_map) if args.topic_map else None
+        topic_map = topic_map_for(DIAGNOSED_VESSEL, args.topic_map) if args.topic_map \
+            else None
         result = diagnose(args.recordings, args.physics, out, settings, library, topic_map, say)
     except InsufficientDataError as exc:
         _insufficient(out, str(exc))

@@ -19,7 +19,7 @@ import sys
 import time
 
 ROOT = Path(__file__).resolve().parents[1]
-for _pkg in ('hybrid_models', 'vessel_physics', 'vessel_datasets'):
+for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_datasets'):
     sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
 
 import numpy as np  # noqa: E402
@@ -27,7 +27,7 @@ import torch  # noqa: E402
 
 from hybrid_models import report  # noqa: E402
 from hybrid_models.checkpoint import CheckpointError, load_model  # noqa: E402
-from hybrid_models.data import dataset_hash, load_runs  # noqa: E402
+from hybrid_models.data import checked_vessel, dataset_hash, load_runs  # noqa: E402
 from hybrid_models.evaluation import (  # noqa: E402
     PhysicsOnly,
     evaluate_model,
@@ -36,7 +36,10 @@ from hybrid_models.evaluation import (  # noqa: E402
     threshold_sweep,
 )
 from hybrid_models.nets import HybridModel  # noqa: E402
-from hybrid_models.training.train import MODEL_FILE, vehicle  # noqa: E402
+from hybrid_models.training.config import ConfigError, evaluation_protocol  # noqa: E402
+from hybrid_models.training.train import MODEL_FILE  # noqa: E402
+from hybrid_models.vehicle import VesselError  # noqa: E402
+from vessel_datasets.format import DatasetError  # noqa: E402
 
 
 def _checkpoint_path(arg: str) -> Path:
@@ -53,10 +56,13 @@ def main(argv=None) -> int:
     parser.add_argument('--out', type=Path, required=True, help='results directory')
     parser.add_argument('--labels', nargs='*', help='row labels (default: config names)')
     parser.add_argument('--split', default='test', help='split to evaluate (default test)')
-    parser.add_argument('--horizon', type=int, default=900, help='forecast length (samples)')
-    parser.add_argument('--window', type=int, default=60, help='initialization window')
-    parser.add_argument('--stride', type=int, default=120,
-                        help='samples between forecast starts within a run (default 120)')
+    parser.add_argument('--horizon', type=int,
+                        help="forecast length (samples; default: the vessel's horizon)")
+    parser.add_argument('--window', type=int,
+                        help="initialization window (samples; default: the vessel's)")
+    parser.add_argument('--stride', type=int,
+                        help='samples between forecast starts within a run (default: '
+                             'horizon/7.5, 120 for 900)')
     parser.add_argument('--target', choices=('true', 'measured'), default='true',
                         help="compare with noise-free '<state>_true' columns (default)")
     parser.add_argument('--sweep', help='label of a hybrid to sweep relative thresholds')
@@ -79,7 +85,13 @@ def main(argv=None) -> int:
     if len(labels) != len(loaded):
         print('evaluate.py: error: give one label per checkpoint', file=sys.stderr)
         return 2
-    spec = vehicle(loaded[0][1]['vehicle']['name'])
+    try:
+        spec = checked_vessel(args.dataset, loaded, args.checkpoints)
+        args.window, args.horizon, args.stride = evaluation_protocol(
+            spec, args.window, args.horizon, args.stride)
+    except (DatasetError, VesselError, ConfigError) as exc:
+        print(f'evaluate.py: error: {exc}', file=sys.stderr)
+        return 2
     runs = load_runs(args.dataset, args.split, spec)
     windows = test_windows(runs, args.window, args.horizon, args.stride, args.target)
     print(f'{len(windows)} forecasts of {args.horizon} steps on {len(runs)} '

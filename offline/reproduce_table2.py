@@ -25,7 +25,7 @@ import sys
 import time
 
 ROOT = Path(__file__).resolve().parents[1]
-for _pkg in ('hybrid_models', 'vessel_physics', 'vessel_datasets'):
+for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_datasets'):
     sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
 
 from hybrid_models.checkpoint import CheckpointError, read_header  # noqa: E402

@@ -27,13 +27,13 @@ import pandas as pd
 import scipy
 from tqdm import tqdm
 
-from vessel_datasets.format import MANIFEST, REQUIRED_COLUMNS, DatasetError, write_dataset
+from vessel_datasets.format import MANIFEST, DatasetError, write_dataset
+from vessel_datasets.synthetic import simulated_run_table, simulator_vessel
 from vessel_physics.config import ConfigError, default_config_path, load_config
-from vessel_physics.simulator import TRUE_KEYS, Simulator
+from vessel_physics.simulator import Simulator
 
 TOOL = 'offline/simulate.py'
 VESSEL_PHYSICS_VERSION = '0.1.0'
-TRUE_COLUMNS = tuple(k + '_true' for k in TRUE_KEYS)
 def positive_int(text: str) -> int:
     """Parse an integer >= 1 for argparse."""
     value = int(text)
@@ -79,11 +79,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def run_table(data: dict, j: int) -> pd.DataFrame:
-    """Return run j of a batch result as a dataset table."""
-    return pd.DataFrame({col: data[col][j] for col in REQUIRED_COLUMNS + TRUE_COLUMNS})
-
-
 def run_source(sim: Simulator, j: int, run_index: int, seed: int) -> dict:
     """Return what a run was drawn from (for the manifest)."""
     return {
@@ -105,6 +100,7 @@ def simulate(args) -> dict:
         raise DatasetError(f'{out} already holds a dataset; use --overwrite to replace it')
     seconds = args.hours * 3600.0
     n_periods = int(round(seconds * cfg.output_rate_hz))
+    vessel = simulator_vessel(cfg.output_rate_hz)
     if n_periods < 1:
         raise ConfigError(f'--hours {args.hours} is shorter than one output period')
     runs, sources = {}, {}
@@ -118,7 +114,7 @@ def simulate(args) -> dict:
                            progress=lambda k, n=n: bar.update(k * n))
             for j in range(n):
                 run_id = f'run_{first + j:03d}'
-                runs[run_id] = run_table(data, j)
+                runs[run_id] = simulated_run_table(data, j, vessel)
                 sources[run_id] = run_source(sim, j, first + j, args.seed)
     wall = time.perf_counter() - start
     provenance = {
@@ -136,7 +132,7 @@ def simulate(args) -> dict:
                  '(docs/conventions.md)',
         'wall_time_s': round(wall, 3),
     }
-    write_dataset(out, runs, rate_hz=cfg.output_rate_hz, provenance=provenance,
+    write_dataset(out, runs, vessel=vessel, provenance=provenance,
                   seed=args.seed, run_sources=sources)
     return {'out': str(out), 'runs': args.runs, 'samples_per_run': n_periods + 1,
             'seed': args.seed, 'wall_time_s': round(wall, 2),

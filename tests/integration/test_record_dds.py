@@ -16,6 +16,8 @@ import pytest
 
 from vessel_datasets.bag_source import BagReader, find_bags
 from vessel_datasets.convert import bag_to_runs
+from vessel_datasets.topic_map import topic_map_for
+from vessel_description import load_vessel
 
 REPO = Path(__file__).resolve().parents[2]
 RECORD = REPO / 'offline' / 'record.py'
@@ -93,7 +95,7 @@ def test_sigterm_closes_the_bag_and_it_converts(launcher, tmp_path, dds_env):
     assert (bag / 'metadata.yaml').is_file()
     assert published_sequence(bag) == {t: [float(i) for i in range(COUNT)] for t in TOPICS}
     # The publisher stamps message i at 1000 + i s: one 1 Hz run of COUNT samples.
-    (table,) = bag_to_runs(bag).values()
+    (table,) = bag_to_runs(bag, topic_map_for(load_vessel('patrol_boat'))).values()
     assert len(table) == COUNT
     assert table['n'].tolist() == [float(i) for i in range(COUNT)]
 

@@ -21,8 +21,11 @@ from vessel_datasets import synthetic
 from vessel_datasets.bag_source import find_bags, sha256
 from vessel_datasets.convert import Options, bag_to_runs, convert_bag
 from vessel_datasets.quantities import WGS84_A_M, WGS84_F
-from vessel_datasets.topic_map import load_topic_map, parse_topic_map
+from vessel_datasets.topic_map import parse_topic_map, topic_map_for
+from vessel_description import load_vessel
 from vessel_physics import frames
+
+SHIP = load_vessel('patrol_boat')
 
 REPO = Path(__file__).resolve().parents[2]
 STORE = get_typestore(Stores.ROS2_JAZZY)
@@ -41,9 +44,9 @@ def assert_matches(table, traj, step=1, atol=1e-9):
 
 def test_round_trip_is_exact(tmp_path):
     traj = synthetic.demo_trajectory(600)
-    runs = bag_to_runs(synthetic.write_bag(tmp_path / 'bag', traj))
+    runs = bag_to_runs(synthetic.write_bag(tmp_path / 'bag', traj), topic_map_for(SHIP))
     (table,) = runs.values()
-    assert list(table.columns) == list(fmt.REQUIRED_COLUMNS)
+    assert list(table.columns) == list(SHIP.dataset_columns)
     assert table['t'].tolist() == list(map(float, range(600)))
     assert_matches(table, traj, atol=1e-12)
 
@@ -78,7 +81,7 @@ def write_damaged_bag(path):
 
 def test_drops_and_gaps_are_counted_exactly(tmp_path):
     (bag,) = find_bags([write_damaged_bag(tmp_path / 'damaged')])
-    result = convert_bag(bag, load_topic_map(), Options.from_yaml())
+    result = convert_bag(bag, topic_map_for(SHIP), Options.from_yaml())
     assert result.error is None
     topics = result.report['topics']
     assert topics['/vessel/odom']['received'] == 204
@@ -95,16 +98,16 @@ def test_drops_and_gaps_are_counted_exactly(tmp_path):
 def test_time_source_log_uses_receive_times(tmp_path):
     traj = synthetic.demo_trajectory(50)
     bag = synthetic.write_bag(tmp_path / 'bag', traj, log_delay_ns=S // 4)
-    (table,) = bag_to_runs(bag, time_source='log').values()
+    (table,) = bag_to_runs(bag, topic_map_for(SHIP), time_source='log').values()
     assert len(table) == 49  # the grid starts at the first whole second after 0.25 s
 
 
 def test_missing_topic_lists_what_the_bag_contains(tmp_path):
     bag = synthetic.write_bag(tmp_path / 'bag', synthetic.demo_trajectory(30))
-    data = load_topic_map().to_dict()
+    data = topic_map_for(SHIP).to_dict()
     data['wind']['velocity']['topic'] = '/weather/wind'
     (found,) = find_bags([bag])
-    result = convert_bag(found, parse_topic_map(data), Options.from_yaml())
+    result = convert_bag(found, parse_topic_map(data, SHIP), Options.from_yaml())
     assert result.error == (
         f'{bag}: the topic map needs /weather/wind (wind.velocity), which the bag lacks; '
         'it has: /vessel/actuators (sensor_msgs/msg/JointState, 30 msgs), /vessel/odom '
@@ -114,10 +117,10 @@ def test_missing_topic_lists_what_the_bag_contains(tmp_path):
 
 def test_missing_field_lists_the_numeric_fields(tmp_path):
     bag = synthetic.write_bag(tmp_path / 'bag', synthetic.demo_trajectory(30))
-    data = load_topic_map().to_dict()
+    data = topic_map_for(SHIP).to_dict()
     data['body_velocity']['surge']['field'] = 'twist.linear.x'
     (found,) = find_bags([bag])
-    result = convert_bag(found, parse_topic_map(data), Options.from_yaml())
+    result = convert_bag(found, parse_topic_map(data, SHIP), Options.from_yaml())
     assert result.error.startswith(
         f"{bag}: the topic map reads 'twist.linear.x' (body_velocity.surge) from /vessel/odom "
         "(nav_msgs/msg/Odometry): no field 'linear' in geometry_msgs/msg/TwistWithCovariance;"
@@ -140,10 +143,10 @@ attitude:
 position:
   latlon: {topic: /gps/fix, field: '', type: sensor_msgs/msg/NavSatFix}
 actuators:
-  shaft_speed: {topic: /propulsion/joints, field: 'velocity[shaft]', scale: 0.10471975511965977}
-  rudder_port: {topic: /propulsion/joints, field: 'position[azimuth_ps]',
+  n: {topic: /propulsion/joints, field: 'velocity[shaft]', scale: 0.10471975511965977}
+  delta_port: {topic: /propulsion/joints, field: 'position[azimuth_ps]',
                 scale: -0.017453292519943295}
-  rudder_stbd: {topic: /propulsion/joints, field: 'position[azimuth_sb]',
+  delta_stbd: {topic: /propulsion/joints, field: 'position[azimuth_sb]',
                 scale: -0.017453292519943295}
 wind:
   frame: frd
@@ -232,7 +235,7 @@ def test_foreign_vessel_converts_with_a_topic_map_only(tmp_path):
     traj = synthetic.demo_trajectory(1200, rate_hz=10.0)
     bag = write_foreign_bag(tmp_path / 'foreign', traj)
     (tmp_path / 'map.yaml').write_text(FOREIGN_MAP)
-    runs = bag_to_runs(bag, load_topic_map(tmp_path / 'map.yaml'))
+    runs = bag_to_runs(bag, topic_map_for(SHIP, tmp_path / 'map.yaml'))
     (table,) = runs.values()
     assert len(table) == 120  # 1 Hz over 0..119 s
     exact = {k: v for k, v in traj.columns.items() if not k.startswith('wind')}
@@ -244,7 +247,7 @@ def test_foreign_vessel_converts_with_a_topic_map_only(tmp_path):
 
 
 def run_cli(*argv):
-    return bag_to_dataset.main([str(a) for a in argv])
+    return bag_to_dataset.main([str(a) for a in argv] + ['--vessel', 'patrol_boat'])
 
 
 def test_cli_writes_dataset_manifest_and_split(tmp_path, capsys):

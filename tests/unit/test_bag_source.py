@@ -19,7 +19,10 @@ from rosbags.typesys import Stores, get_typestore
 from vessel_datasets import synthetic
 from vessel_datasets.bag_source import BagError, BagReader, find_bags
 from vessel_datasets.convert import Options, bag_to_runs, convert_bag
-from vessel_datasets.topic_map import load_topic_map
+from vessel_datasets.topic_map import topic_map_for
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 STORE = get_typestore(Stores.ROS2_JAZZY)
 RECORD_HEADER = 9  # MCAP record: opcode (1) + length (8)
@@ -96,7 +99,7 @@ def test_truncated_mid_chunk_recovers_everything_before_the_cut(long_bag, tmp_pa
     assert f'recovered {got - first_chunk} message(s)' in text
 
     # And it still converts: one run up to the cut.
-    runs = bag_to_runs(bag)
+    runs = bag_to_runs(bag, topic_map_for(SHIP))
     assert len(runs) == 1
     assert 600 < len(next(iter(runs.values()))) < 2000
 
@@ -107,7 +110,7 @@ def test_cut_inside_the_first_record_leaves_nothing_usable(long_bag, tmp_path):
     bag = tmp_path / 'stub.mcap'
     bag.write_bytes(src.read_bytes()[:first.chunk_start_offset + 20])
     (found,) = find_bags([bag])
-    result = convert_bag(found, load_topic_map(), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
     assert result.error and 'which the bag lacks' in result.error
     assert any('cut short' in line for line in result.report['losses'])
 
@@ -127,7 +130,7 @@ def test_directory_without_metadata_reads_its_split_files(tmp_path):
     (found,) = find_bags([bag])
     assert [f.name for f in found.files] == ['rosbag2_crashed_0.mcap', 'rosbag2_crashed_1.mcap']
     assert any('no metadata.yaml' in n for n in found.notes)
-    runs = bag_to_runs(bag, min_run_s=10)
+    runs = bag_to_runs(bag, topic_map_for(SHIP), min_run_s=10)
     assert [len(r) for r in runs.values()] == [120]  # one run across the file boundary
 
 
@@ -150,7 +153,7 @@ def test_not_an_mcap_file(tmp_path):
     bad = tmp_path / 'junk.mcap'
     bad.write_bytes(b'this is not a bag' * 10)
     (found,) = find_bags([bad])
-    result = convert_bag(found, load_topic_map(), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
     assert any('not an MCAP file' in line for line in result.report['losses'])
     assert result.error
 
@@ -171,11 +174,12 @@ def test_unknown_type_gives_one_line_and_the_rest_converts(tmp_path):
     bag = _write_with_extra_topic(tmp_path / 'unknown', 'acme_msgs/msg/Ping', '',
                                   'RIHS01_' + '0' * 64)
     (found,) = find_bags([bag])
-    result = convert_bag(found, load_topic_map(), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
     assert result.error is None and len(result.runs) == 1
     notes = [n for n in result.report['notes'] if '/sonar/ping' in n]
     assert notes == ['topic /sonar/ping has type acme_msgs/msg/Ping, which has no definition '
-                     'in the bag and is not a ROS 2 Jazzy type; its messages are skipped']
+                     'in the bag or in an installed package and is not a ROS 2 Jazzy type '
+                     '(give its .msg file with --msg-dir DIR); its messages are skipped']
 
 
 def test_custom_type_with_embedded_definition_is_decoded(tmp_path):
@@ -222,8 +226,9 @@ def write_with_mcap_library(path: Path, traj) -> Path:
 
 def test_bag_from_another_writer_converts_like_our_own(tmp_path):
     traj = synthetic.demo_trajectory(300)
-    ours = bag_to_runs(synthetic.write_bag(tmp_path / 'ours', traj))
-    theirs = bag_to_runs(write_with_mcap_library(tmp_path / 'theirs.mcap', traj))
+    ours = bag_to_runs(synthetic.write_bag(tmp_path / 'ours', traj), topic_map_for(SHIP))
+    theirs = bag_to_runs(write_with_mcap_library(tmp_path / 'theirs.mcap', traj),
+                         topic_map_for(SHIP))
     assert len(ours) == len(theirs) == 1
     a, b = next(iter(ours.values())), next(iter(theirs.values()))
     assert a.shape == b.shape == (300, 15)
@@ -259,7 +264,7 @@ def test_corrupt_chunk_is_skipped_and_reported(tmp_path):
     bag = tmp_path / 'flipped.mcap'
     bag.write_bytes(bytes(data))
     (found,) = find_bags([bag])
-    result = convert_bag(found, load_topic_map(), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
     assert result.error is None
     assert any(f'chunk at byte {chunks[1].chunk_start_offset} (zstd' in line
                and 'its messages are lost' in line for line in result.report['losses'])

@@ -7,16 +7,18 @@ import pandas as pd
 import pytest
 
 from vessel_datasets.format import (
-    REQUIRED_COLUMNS,
     DatasetError,
     read_dataset,
     split_runs,
     write_dataset,
 )
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 
 def make_run(n=10, offset=0.0):
-    data = {c: np.linspace(0, 1, n) + offset for c in REQUIRED_COLUMNS}
+    data = {c: np.linspace(0, 1, n) + offset for c in SHIP.dataset_columns}
     data['t'] = np.arange(n, dtype=float)
     return pd.DataFrame(data)
 
@@ -42,7 +44,7 @@ def test_bad_fractions_are_refused():
 
 def test_round_trip_keeps_tables_units_and_split(tmp_path):
     runs = {f'run_{i}': make_run(offset=i) for i in range(5)}
-    write_dataset(tmp_path, runs, rate_hz=1.0, provenance={'tool': 'test'}, seed=1,
+    write_dataset(tmp_path, runs, vessel=SHIP, provenance={'tool': 'test'}, seed=1,
                   run_sources={'run_0': {'bag': 'x.mcap'}})
     ds = read_dataset(tmp_path)
     assert ds.rate_hz == 1.0
@@ -57,11 +59,11 @@ def test_round_trip_keeps_tables_units_and_split(tmp_path):
 
 def test_explicit_split_is_kept_and_checked(tmp_path):
     runs = {'a': make_run(), 'b': make_run()}
-    write_dataset(tmp_path, runs, rate_hz=1.0, provenance={},
+    write_dataset(tmp_path, runs, vessel=SHIP, provenance={},
                   split={'train': ['a'], 'test': ['b']})
     assert read_dataset(tmp_path).run_ids('test') == ['b']
     with pytest.raises(DatasetError, match='unknown or repeated'):
-        write_dataset(tmp_path / 'x', runs, rate_hz=1.0, provenance={},
+        write_dataset(tmp_path / 'x', runs, vessel=SHIP, provenance={},
                       split={'train': ['a', 'zzz']})
 
 
@@ -72,7 +74,7 @@ def test_explicit_split_is_kept_and_checked(tmp_path):
 ])
 def test_invalid_runs_are_refused_with_the_reason(tmp_path, corrupt, message):
     with pytest.raises(DatasetError, match=message):
-        write_dataset(tmp_path, {'bad': corrupt(make_run())}, rate_hz=1.0, provenance={})
+        write_dataset(tmp_path, {'bad': corrupt(make_run())}, vessel=SHIP, provenance={})
 
 
 def test_a_directory_without_manifest_is_not_a_dataset(tmp_path):

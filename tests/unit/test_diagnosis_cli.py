@@ -10,7 +10,10 @@ from rosbags.typesys import Stores, get_typestore
 
 from offline import diagnose
 from vessel_datasets import synthetic
-from vessel_datasets.format import REQUIRED_COLUMNS, write_dataset
+from vessel_datasets.format import write_dataset
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 EXIT_OK, EXIT_INPUT, EXIT_USAGE, EXIT_INSUFFICIENT = 0, 1, 2, 3
 
@@ -80,8 +83,8 @@ def test_recording_without_the_wind_topic_is_refused(capsys, tmp_path):
 def _short_dataset(tmp_path, seconds):
     traj = synthetic.demo_trajectory(seconds)
     table = pd.DataFrame({'t': np.arange(seconds, dtype=float),
-                          **{c: traj.columns[c] for c in REQUIRED_COLUMNS[1:]}})
-    write_dataset(tmp_path / 'ds', {'trial': table}, rate_hz=1.0, provenance={'tool': 'test'})
+                          **{c: traj.columns[c] for c in SHIP.dataset_columns[1:]}})
+    write_dataset(tmp_path / 'ds', {'trial': table}, vessel=SHIP, provenance={'tool': 'test'})
     return tmp_path / 'ds'
 
 

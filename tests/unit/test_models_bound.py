@@ -10,7 +10,9 @@ from hybrid_models.bound import apply_bound, half_width, output_range
 from hybrid_models.evaluation import smallest_threshold, trajectory_of
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import build_physical
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 
 def test_output_range_is_the_central_95_percent_spread():

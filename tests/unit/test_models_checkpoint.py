@@ -15,7 +15,9 @@ from hybrid_models.checkpoint import (
     save_checkpoint,
 )
 from hybrid_models.models import build_model
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 CFG = {'kind': 'hybrid', 'hidden': 8, 'layers': 2, 'dropout': 0.0,
        'physical': {'kind': 'hyd', 'masks': 'coupled'}, 'relative_threshold': 0.15}

@@ -12,7 +12,9 @@ import torch
 
 from hybrid_models.engine import ForecastEngine
 from hybrid_models.models import build_model
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 W, H = 12, 40
 

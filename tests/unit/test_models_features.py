@@ -5,7 +5,9 @@ import pytest
 import torch
 
 from hybrid_models.physical.features import BLANKE_TERMS, DOF_TERMS, FeatureMap
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 Z = torch.tensor([[7.0, -0.4, 0.03, -0.02, 0.05],
                   [-2.0, 0.3, -0.01, 0.04, -0.1]], dtype=torch.float64)

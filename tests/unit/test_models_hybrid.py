@@ -5,7 +5,9 @@ import torch
 
 from hybrid_models.models import build_model
 from hybrid_models.normalization import Normalizer
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 
 def hybrid(**kw):

@@ -5,8 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_models.metrics import forecast_metrics, ship_positions, trajectory_errors
-from hybrid_models.vehicle import SHIP
+from hybrid_models.metrics import forecast_metrics, positions, trajectory_errors
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 
 def states(n, u=0.0, v=0.0, r=0.0, phi=0.0):
@@ -16,19 +18,19 @@ def states(n, u=0.0, v=0.0, r=0.0, phi=0.0):
 
 
 def test_straight_surge_gives_a_straight_line():
-    pos = ship_positions(states(10, u=2.0), SHIP)
+    pos = positions(states(10, u=2.0), SHIP)
     np.testing.assert_allclose(pos[:, 0], 2.0 * np.arange(1, 11))
     np.testing.assert_allclose(pos[:, 1], 0.0)
 
 
 def test_sway_is_projected_with_the_roll_angle():
-    pos = ship_positions(states(4, v=1.0, phi=0.3), SHIP)
+    pos = positions(states(4, v=1.0, phi=0.3), SHIP)
     np.testing.assert_allclose(pos[:, 1], math.cos(0.3) * np.arange(1, 5))
 
 
 def test_turning_follows_the_heading_integral():
     # psi_k = sum_{j<k} r: heading 0, 0.1, 0.2 for the first three samples.
-    pos = ship_positions(states(3, u=1.0, r=0.1), SHIP)
+    pos = positions(states(3, u=1.0, r=0.1), SHIP)
     x = np.cumsum(np.cos([0.0, 0.1, 0.2]))
     y = np.cumsum(np.sin([0.0, 0.1, 0.2]))
     np.testing.assert_allclose(pos, np.stack([x, y], 1))

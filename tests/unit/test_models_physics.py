@@ -7,7 +7,9 @@ import pytest
 import torch
 
 from hybrid_models.physical import build_physical
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 vp = pytest.importorskip('vessel_physics.params')
 P = vp.load_named_vessel('nominal_vessel')

@@ -9,11 +9,13 @@ from hybrid_models.checkpoint import load_model, save_checkpoint
 from hybrid_models.engine import ForecastEngine
 from hybrid_models.models import build_model
 from hybrid_models.physical import build_physical
-from hybrid_models.vehicle import SHIP
 from tests.unit.test_models_engine import inputs, make_model, torch_forecast
+from vessel_description import load_vessel
 from vessel_physics.mass import mass_matrix
 from vessel_physics.params import load_named_vessel
 from vessel_physics.terms import PRO_TERMS, SIMULATOR_TERMS
+
+SHIP = load_vessel('patrol_boat')
 
 STATES = torch.tensor([[6.0, 0.3, 0.02, -0.03, 0.04], [3.0, -0.1, 0.0, 0.01, -0.02]],
                       dtype=torch.float64)

@@ -5,7 +5,9 @@ import torch
 
 from hybrid_models.data import RunArrays, forecast_windows
 from hybrid_models.qlag import QLag
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 
 def lagged_system(n=400, seed=0):

@@ -6,7 +6,9 @@ import torch
 
 from hybrid_models.physical import CompositeModel, PhysicalModel, build_physical
 from hybrid_models.physical.regression import ridge_lstsq
-from hybrid_models.vehicle import SHIP
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 
 class Halving(PhysicalModel):

@@ -8,7 +8,10 @@ import sys
 import numpy as np
 import pytest
 
-from vessel_datasets.format import REQUIRED_COLUMNS, read_dataset
+from vessel_datasets.format import read_dataset
+from vessel_description import load_vessel
+
+SHIP = load_vessel('patrol_boat')
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = ROOT / 'offline' / 'simulate.py'
@@ -30,7 +33,7 @@ def test_tiny_dataset_end_to_end(tmp_path):
     assert {len(ds.run_ids(s)) for s in ('train', 'val', 'test')} == {1}
     table = ds.load('run_001')
     assert len(table) == 301
-    for column in REQUIRED_COLUMNS + ('u_true', 'phi_true', 'psi_true', 'x_true', 'y_true'):
+    for column in SHIP.dataset_columns + ('u_true', 'phi_true', 'psi_true', 'x_true', 'y_true'):
         assert column in table.columns
     np.testing.assert_array_equal(table['t'].to_numpy(), np.arange(301.0))
     assert table[['x_true', 'y_true']].iloc[0].tolist() == [0.0, 0.0]

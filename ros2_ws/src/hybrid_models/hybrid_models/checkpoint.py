@@ -132,9 +132,37 @@ def restore_optimizer(optimizer: torch.optim.Optimizer, ckpt: Checkpoint) -> Non
     optimizer.load_state_dict({'state': state, 'param_groups': saved['param_groups']})
 
 
+def upgrade_checkpoint(path: str | Path, vessel: VehicleSpec) -> None:
+    """
+    Give a checkpoint made before vessel files the description of ``vessel``.
+
+    Only the header changes, and only when the stored vectors and rate are the vessel's;
+    weights are kept bit for bit.
+    """
+    ckpt = load_checkpoint(path)
+    old = ckpt.config.get('vehicle') or {}
+    if 'format' in old:
+        return  # already a vessel description
+    stored = (tuple(old.get('state_names', ())), tuple(old.get('control_names', ())),
+              old.get('rate_hz'))
+    if stored != (vessel.state_names, vessel.control_names, vessel.rate_hz):
+        raise CheckpointError(f'{path}: stored vectors and rate {stored} are not those of '
+                              f'vessel {vessel.name!r}')
+    tensors = {**{f'model/{k}': v for k, v in ckpt.model_state.items()},
+               **{f'optim/{k}': v for k, v in ckpt.optim_state.items()}}
+    config = {**ckpt.config, 'vehicle': vessel.to_dict()}
+    meta = {'format': FORMAT, 'config': json.dumps(config, default=_json_default)}
+    tmp = Path(path).with_name(Path(path).name + '.tmp')
+    save_file(tensors, str(tmp), metadata=meta)
+    os.replace(tmp, path)
+
+
 def load_model(path: str | Path) -> tuple[nn.Module, dict]:
     """Rebuild a trained model from its checkpoint; returns (model in eval mode, config)."""
     ckpt = load_checkpoint(path)
+    if 'format' not in (ckpt.config.get('vehicle') or {}):
+        raise CheckpointError(f'{path}: made before vessel files (no vessel description); '
+                              f'give it one with hybrid_models.checkpoint.upgrade_checkpoint')
     try:
         spec = VehicleSpec.from_dict(ckpt.config['vehicle'])
         model = build_model(ckpt.config['model'], spec)

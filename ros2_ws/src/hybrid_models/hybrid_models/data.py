@@ -73,6 +73,23 @@ def load_runs(dataset: Dataset | str | Path, split: str, spec: VehicleSpec) -> l
     return runs
 
 
+def checked_vessel(dataset: Dataset | str | Path, checkpoints: list[tuple[object, dict]],
+                   names: list | None = None) -> VehicleSpec:
+    """
+    Return the dataset's vessel, refused unless every checkpoint was made for the same one.
+
+    ``checkpoints`` are (model, config) pairs as ``load_model`` returns them; a model
+    trained at another rate or on other vectors is refused with one line.
+    """
+    ds = dataset if isinstance(dataset, Dataset) else read_dataset(dataset)
+    vessel = ds.vessel
+    for i, (_, cfg) in enumerate(checkpoints):
+        label = f'checkpoint {names[i]}' if names else f'checkpoint {i}'
+        vessel.check_compatible(VehicleSpec.from_dict(cfg['vehicle'], source=label),
+                                label)
+    return vessel
+
+
 def dataset_hash(path: str | Path) -> str:
     """SHA-256 over the manifest and every run file (identifies the training data)."""
     ds = read_dataset(path)

@@ -1,8 +1,9 @@
 """
 Forecast metrics: per-state RMSE and the trajectory error of Baier et al.
 
-Trajectory (ship): heading and position are integrated from the origin with heading 0
-for predicted and true states alike, forward Euler at the sample period dt:
+Trajectory (any vessel; roll enters only where it is modelled): heading and position
+are integrated from the origin with heading 0 for predicted and true states alike,
+forward Euler at the sample period dt:
 
     psi_k = dt * sum_{j<k} r_j
     x_k = dt * sum_{j<=k} (u_j cos psi_j - v_j cos phi_j sin psi_j)
@@ -17,8 +18,6 @@ interval as a lower bound on the uncertainty).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 import numpy as np
 
 from hybrid_models.vehicle import VehicleSpec
@@ -26,25 +25,23 @@ from hybrid_models.vehicle import VehicleSpec
 Z95 = 1.959963984540054
 
 
-def ship_positions(z: np.ndarray, spec: VehicleSpec) -> np.ndarray:
-    """Planar positions (..., H, 2) in m from states (..., H, n_state), see module doc."""
+def positions(z: np.ndarray, spec: VehicleSpec) -> np.ndarray:
+    """
+    Integrate planar tracks (..., H, 2) in m from states (..., H, n_state) (module doc).
+
+    A vessel without roll moves as if phi = 0.
+    """
     dt = spec.dt
-    u, v, r, phi = (z[..., spec.state_index(n)] for n in ('u', 'v', 'r', 'phi'))
+    u, v, r = (z[..., spec.state_index(n)] for n in ('u', 'v', 'r'))
     psi = dt * (np.cumsum(r, axis=-1) - r)
-    x_dot = u * np.cos(psi) - v * np.cos(phi) * np.sin(psi)
-    y_dot = u * np.sin(psi) + v * np.cos(phi) * np.cos(psi)
+    sway = v * np.cos(z[..., spec.state_index('phi')]) if spec.has_roll else v
+    x_dot = u * np.cos(psi) - sway * np.sin(psi)
+    y_dot = u * np.sin(psi) + sway * np.cos(psi)
     return dt * np.stack([np.cumsum(x_dot, axis=-1), np.cumsum(y_dot, axis=-1)], axis=-1)
-
-
-# Position kinematics per vehicle (by VehicleSpec.name); a quadcopter adds its own.
-POSITIONS: dict[str, Callable[[np.ndarray, VehicleSpec], np.ndarray]] = {
-    'ship': ship_positions,
-}
 
 
 def trajectory_errors(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec) -> np.ndarray:
     """Distance (B, H) in m between predicted and true positions at every step."""
-    positions = POSITIONS[spec.name]
     with np.errstate(invalid='ignore', over='ignore'):
         return np.linalg.norm(positions(pred, spec) - positions(true, spec), axis=-1)
 
@@ -54,7 +51,7 @@ def _finite(x: float) -> float | None:
 
 
 def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
-                     minute: int = 60) -> dict:
+                     minute: int | None = None) -> dict:
     """
     Every number of one model's forecasts (B, H, n_state) against the truth.
 
@@ -70,6 +67,7 @@ def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
     per_forecast = err.mean(axis=1)
     n = len(per_forecast)
     std = float(per_forecast.std(ddof=1)) if n > 1 else float('nan')
+    minute = minute or max(1, int(round(60.0 * spec.rate_hz)))  # samples per minute
     steps = err.shape[1] // minute * minute
     per_minute = err[:, :steps].reshape(n, -1, minute).mean(axis=2) if steps else None
     return {

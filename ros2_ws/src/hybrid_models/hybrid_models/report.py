@@ -11,7 +11,7 @@ from matplotlib import ticker  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from hybrid_models.metrics import POSITIONS, trajectory_errors  # noqa: E402
+from hybrid_models.metrics import positions, trajectory_errors  # noqa: E402
 from hybrid_models.vehicle import VehicleSpec  # noqa: E402
 
 # Decimals per unit, as in the paper's table.
@@ -71,7 +71,6 @@ def plot_states(path: Path, spec: VehicleSpec, true: np.ndarray, preds: dict[str
 def plot_trajectories(path: Path, spec: VehicleSpec, true: np.ndarray,
                       preds: dict[str, np.ndarray], title: str) -> None:
     """One forecast's integrated paths from the origin (x north/forward, y east)."""
-    positions = POSITIONS[spec.name]
     fig, ax = plt.subplots(figsize=(6, 6))
     p = positions(true, spec)
     ax.plot(p[:, 1], p[:, 0], 'k', lw=2, label='true')

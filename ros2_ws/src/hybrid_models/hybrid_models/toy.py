@@ -14,10 +14,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybrid_models.vehicle import SHIP
+from hybrid_models.vehicle import load_vessel
 from vessel_datasets.format import write_dataset
 
 SUBSTEPS = 10
+# Same vectors and rate as the simulator's vessel: the toy stands in for its datasets.
+TOY_VESSEL = load_vessel('patrol_boat')
 
 
 def _rates(x: np.ndarray, c: np.ndarray, wave: float) -> np.ndarray:
@@ -66,13 +68,13 @@ def simulate_toy_run(rng: np.random.Generator, n_samples: int, noise: float = 0.
     scale = np.array([1.0, 0.3, 0.01, 0.005, 0.01])
     measured = states + noise * scale * rng.standard_normal(states.shape)
     table = {'t': np.arange(n_samples, dtype=float)}
-    for i, name in enumerate(SHIP.state_names):
+    for i, name in enumerate(TOY_VESSEL.state_names):
         table[name] = measured[:, i]
         table[name + '_true'] = states[:, i]
     psi = np.cumsum(states[:, 3])
     table.update({'psi': psi, 'x': np.cumsum(states[:, 0] * np.cos(psi)),
                   'y': np.cumsum(states[:, 0] * np.sin(psi))})
-    for i, name in enumerate(SHIP.control_names):
+    for i, name in enumerate(TOY_VESSEL.control_names):
         table[name] = c[:, i]
     return pd.DataFrame(table)
 
@@ -82,6 +84,6 @@ def write_toy_dataset(out_dir: str | Path, n_runs: int = 10, n_samples: int = 60
     """Write a toy dataset directory; returns its path."""
     rng = np.random.default_rng(seed)
     runs = {f'toy_{i:03d}': simulate_toy_run(rng, n_samples) for i in range(n_runs)}
-    write_dataset(out_dir, runs, rate_hz=1.0, seed=seed,
+    write_dataset(out_dir, runs, vessel=TOY_VESSEL, seed=seed,
                   provenance={'tool': 'hybrid_models.toy', 'seed': seed})
     return Path(out_dir)

@@ -29,7 +29,7 @@ from sensor_msgs.msg import JointState
 
 from hybrid_models.checkpoint import CheckpointError
 from hybrid_models.engine import ForecastEngine
-from hybrid_models.metrics import POSITIONS
+from hybrid_models.metrics import positions
 from hybrid_predictor.health import Health
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.plans import (
@@ -237,7 +237,7 @@ class PredictorNode(Node):
         return msg
 
     def _positions(self, states: np.ndarray) -> np.ndarray:
-        return POSITIONS[self.spec.name](states, self.spec)
+        return positions(states, self.spec)
 
     def _path_message(self, forecast: Forecast) -> PathMsg:
         path = PathMsg()

@@ -11,8 +11,10 @@ scanned record by record with the ``mcap`` library's stream reader, which recove
 every complete record up to the damage; a chunk cut short is decompressed as far as it
 goes and its complete messages are kept. Every loss is reported as one line saying
 which file, which bytes and which log times. Messages are deserialized with a rosbags
-typestore built from the definitions embedded in the bag, completed by the ROS 2 Jazzy
-types for bags recorded without definitions.
+typestore built from the definitions embedded in the bag, then, for bags recorded
+without them (rosbag2 before Iron, sqlite3 storage), from folders of ``.msg`` files the
+user names (``MessageDefinitions``), from the ROS 2 interface packages installed here,
+and last from the ROS 2 Jazzy types.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from datetime import UTC, datetime
 import hashlib
+import importlib.util
 from io import BytesIO
 import os
 from pathlib import Path
@@ -57,6 +60,10 @@ _READ_ERRORS = (ReaderError, McapError, struct.error, ValueError, OSError, EOFEr
 
 class BagError(ValueError):
     """A path holds no readable recording."""
+
+
+class MessageDefinitionError(ValueError):
+    """A folder of .msg files cannot be used (missing, no package name, bad file)."""
 
 
 @dataclass
@@ -377,8 +384,75 @@ def _decompress_prefix(chunk: Chunk) -> bytes:
 
 
 def _why(exc: BaseException) -> str:
-    text = str(exc).strip().rstrip('.')
+    text = re.sub(r'\s*\n\s*', ' ', str(exc).strip()).rstrip('.')  # reports are one line
     return text or type(exc).__name__
+
+
+def _msg_error(exc: BaseException, text: str, msgtype: str) -> str:
+    """Say in one line where rosbags' .msg parser stopped in ``text``."""
+    # rosbags reports 'Could not parse:', the text it was given, the offset, the rest.
+    parts = str(exc).split('\n')
+    start = len(f'MSG: {msgtype}\n')  # what get_types_from_msg puts before the text
+    if len(parts) > 2 and parts[2].isdigit() and int(parts[2]) >= start:
+        line = text.count('\n', 0, int(parts[2]) - start) + 1
+        return f'cannot parse line {line}: {text.splitlines()[line - 1].strip()!r}'
+    return _why(exc)
+
+
+class MessageDefinitions:
+    """
+    Message definitions from folders of ``.msg`` files, for bags recorded without them.
+
+    Each folder is searched recursively, the folders in the order given; the first file
+    that defines a type wins. A file laid out as ``<pkg>/msg/Name.msg`` within a folder
+    (the folder itself may be ``<pkg>``) defines ``pkg/msg/Name``; any other file takes
+    its package from ``package``. Raises MessageDefinitionError (one line) for a missing
+    folder, one without ``.msg`` files, a file without a package or one that does not
+    parse.
+    """
+
+    def __init__(self, dirs: Iterable[str | os.PathLike] = (), package: str | None = None):
+        self.dirs = tuple(Path(d) for d in dirs)
+        self.package = package
+        self.types: dict = {}  # type name -> its field definitions, as rosbags parses them
+        self.files: dict[str, Path] = {}  # type name -> the .msg file that defines it
+        for root in self.dirs:
+            self._load(root)
+
+    def _load(self, root: Path) -> None:
+        if not root.is_dir():
+            raise MessageDefinitionError(f'--msg-dir {root}: no such directory')
+        files = sorted(f for f in root.rglob('*.msg') if f.is_file())
+        if not files:
+            raise MessageDefinitionError(f'--msg-dir {root}: no .msg files inside')
+        top = root.resolve().name  # so that --msg-dir <pkg> finds <pkg>/msg/Name.msg
+        for path in files:
+            parts = (top, *path.relative_to(root).parts)
+            if len(parts) >= 3 and parts[-2] == 'msg':
+                pkg = parts[-3]
+            elif self.package:
+                pkg = self.package
+            else:
+                raise MessageDefinitionError(
+                    f'{path}: no package name for this message (it is not in a <pkg>/msg/ '
+                    f'folder); give one with --msg-package NAME')
+            msgtype = f'{pkg}/msg/{path.stem}'
+            if msgtype in self.types:
+                continue
+            try:
+                text = path.read_text()
+            except (OSError, UnicodeDecodeError) as exc:
+                raise MessageDefinitionError(f'{path}: cannot read ({_why(exc)})') from None
+            try:
+                self.types[msgtype] = get_types_from_msg(text, msgtype)[msgtype]
+            except Exception as exc:  # noqa: BLE001 - the parser raises several kinds
+                raise MessageDefinitionError(f'{path}: not a valid definition of {msgtype} '
+                                             f'({_msg_error(exc, text, msgtype)})') from None
+            self.files[msgtype] = path
+
+    def to_dict(self) -> dict:
+        """Describe the folders and the package given, for a manifest."""
+        return {'msg_dirs': [str(d) for d in self.dirs], 'msg_package': self.package}
 
 
 class BagReader:
@@ -387,10 +461,12 @@ class BagReader:
 
     Use as a context manager. ``topics`` and ``typestore`` are available after opening;
     ``messages()`` yields ``(topic, log_time_ns, cdr_bytes)`` per file in file order.
+    ``definitions`` supplies the ``.msg`` files of types the bag does not define.
     """
 
-    def __init__(self, bag: Bag):
+    def __init__(self, bag: Bag, definitions: MessageDefinitions | None = None):
         self.bag = bag
+        self.definitions = definitions
         self.losses: list[str] = []
         self.notes: list[str] = list(bag.notes)
         self.topics: dict[str, TopicInfo] = {}
@@ -441,7 +517,7 @@ class BagReader:
                 if c.msgdef and c.msgdef[1].strip():
                     defs.setdefault(c.msgtype, c.msgdef)
         self.typestore, problems = build_typestore(defs, {t for tc in types.values()
-                                                          for t in tc})
+                                                          for t in tc}, self.definitions)
         for topic in sorted(types):
             msgtype, _ = types[topic].most_common(1)[0]
             if len(types[topic]) > 1:
@@ -493,15 +569,19 @@ class BagReader:
                 yield keys[key], log_ns, raw
 
 
-def build_typestore(defs: dict[str, tuple[str, str]],
-                    needed: Iterable[str]) -> tuple[Typestore, dict[str, str]]:
+def build_typestore(defs: dict[str, tuple[str, str]], needed: Iterable[str],
+                    definitions: MessageDefinitions | None = None,
+                    ) -> tuple[Typestore, dict[str, str]]:
     """
-    Build a typestore from embedded definitions, completed by ROS 2 Jazzy's types.
+    Build a typestore for the ``needed`` types and the types they use.
 
+    Each type's definition comes from the first source that has it: the bag's own
+    (``defs``: type -> (format 'msg'|'idl', text)), the ``.msg`` folders of
+    ``definitions``, the ROS 2 interface packages installed here, ROS 2 Jazzy's types.
     Returns the store and, for each type in ``needed`` it cannot deserialize, why.
     """
     problems: dict[str, str] = {}
-    typs: dict = {}
+    embedded: dict = {}
     for msgtype, (fmt, text) in defs.items():
         try:
             parsed = (get_types_from_msg(text, msgtype) if fmt == 'msg'
@@ -510,23 +590,81 @@ def build_typestore(defs: dict[str, tuple[str, str]],
             problems[msgtype] = f'has an embedded definition that does not parse ({_why(exc)})'
             continue
         for name, value in parsed.items():
-            typs.setdefault(name, value)
+            embedded.setdefault(name, value)
+    local = definitions.types if definitions else {}
+    jazzy = get_typestore(Stores.ROS2_JAZZY).fielddefs
+    chosen: dict = {}
+    todo = [t for t in needed if t not in problems]
+    while todo:
+        name = todo.pop()
+        if name in chosen:
+            continue
+        for source in (embedded.get, local.get, _installed_definition, jazzy.get):
+            if (value := source(name)) is not None:
+                chosen[name] = value
+                todo += [n for _, desc in value[1] for n in _nested(desc)]
+                break
     store = get_typestore(Stores.EMPTY)
-    store.register(typs)
-    jazzy = get_typestore(Stores.ROS2_JAZZY)
-    fallback: dict = {}
+    store.register(chosen)
     for msgtype in needed:
-        if msgtype not in store.fielddefs and msgtype not in problems:
-            _collect(jazzy.fielddefs, msgtype, fallback, store.fielddefs)
-    if fallback:
-        store.register(fallback)
-    for msgtype in needed:
-        if msgtype not in store.fielddefs and msgtype not in problems:
-            problems[msgtype] = ('has no definition in the bag and is not a ROS 2 Jazzy '
-                                 'type')
-        elif msgtype in store.fielddefs and not _complete(store.fielddefs, msgtype):
-            problems[msgtype] = 'has an embedded definition that lacks a nested type'
+        if msgtype in problems:
+            continue
+        missing = _missing(store.fielddefs, msgtype)
+        if missing == msgtype:
+            problems[msgtype] = _no_definition(msgtype, definitions)
+        elif missing:
+            problems[msgtype] = f'uses {missing}, which {_no_definition(missing, definitions)}'
     return store, problems
+
+
+def _no_definition(msgtype: str, definitions: MessageDefinitions | None) -> str:
+    """Why ``msgtype`` is unknown, and what the user can do about it."""
+    if not definitions or not definitions.dirs:
+        return ('has no definition in the bag or in an installed package and is not a ROS 2 '
+                'Jazzy type (give its .msg file with --msg-dir DIR)')
+    text = ('has no definition in the bag, the --msg-dir folders or an installed package '
+            'and is not a ROS 2 Jazzy type')
+    name = msgtype.rsplit('/', 1)[-1]
+    near = [t for t in definitions.types if t.rsplit('/', 1)[-1] == name]
+    if near:  # most likely the folder layout gave the wrong package name
+        text += (f' ({definitions.files[near[0]]} defines {near[0]}; a .msg file takes its '
+                 f'package from its folders <pkg>/msg/, else from --msg-package)')
+    return text
+
+
+def _installed_definition(msgtype: str):
+    """
+    Read the definition of ``pkg/msg/Name`` from an installed interface package, or None.
+
+    The package must be importable as a ROS 2 Python interface package (with a ``msg``
+    module); its ``.msg`` file is ``share/<pkg>/msg/Name.msg`` under its ament prefix.
+    """
+    pkg, kind, name = (msgtype.split('/') + ['', ''])[:3]
+    if kind != 'msg' or not pkg.isidentifier() or not name:
+        return None
+    try:
+        spec = importlib.util.find_spec(pkg)
+    except (ImportError, ValueError):
+        return None
+    modules = [Path(p) for p in (spec.submodule_search_locations or [])] if spec else []
+    if not any((m / 'msg').is_dir() for m in modules):
+        return None
+    shares = []
+    try:
+        from ament_index_python.packages import get_package_share_directory
+        shares.append(Path(get_package_share_directory(pkg)))
+    except (ImportError, LookupError, OSError, ValueError):
+        pass  # no ament index here, or it lacks the package: look beside the module
+    # A prefix holds lib/pythonX.Y/site-packages/<pkg> and share/<pkg> side by side.
+    shares += [prefix / 'share' / pkg for m in modules for prefix in m.parents]
+    for share in shares:
+        path = share / 'msg' / f'{name}.msg'
+        if path.is_file():
+            try:
+                return get_types_from_msg(path.read_text(), msgtype)[msgtype]
+            except Exception:  # noqa: BLE001 - an unusable file is as good as none
+                return None
+    return None
 
 
 def _types_from_idl(text: str) -> dict:
@@ -546,21 +684,16 @@ def _nested(desc) -> Iterator[str]:
         yield from _nested(desc[1][0])
 
 
-def _collect(source: dict, msgtype: str, out: dict, have: dict) -> None:
-    if msgtype in out or msgtype in have or msgtype not in source:
-        return
-    out[msgtype] = source[msgtype]
-    for _, desc in source[msgtype][1]:
-        for name in _nested(desc):
-            _collect(source, name, out, have)
-
-
-def _complete(fielddefs: dict, msgtype: str, seen: set | None = None) -> bool:
+def _missing(fielddefs: dict, msgtype: str, seen: set | None = None) -> str | None:
+    """Return the first type that ``msgtype`` is or uses and ``fielddefs`` lacks, or None."""
     seen = set() if seen is None else seen
     if msgtype in seen:
-        return True
+        return None
     seen.add(msgtype)
     if msgtype not in fielddefs:
-        return False
-    return all(_complete(fielddefs, n, seen) for _, d in fielddefs[msgtype][1]
-               for n in _nested(d))
+        return msgtype
+    for _, desc in fielddefs[msgtype][1]:
+        for name in _nested(desc):
+            if missing := _missing(fielddefs, name, seen):
+                return missing
+    return None

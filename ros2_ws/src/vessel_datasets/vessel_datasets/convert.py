@@ -9,7 +9,9 @@ with a manifest that lets anyone trace every run back to its source bytes.
 Library use (for example a round-trip test against the batch simulator)::
 
     from vessel_datasets.convert import bag_to_runs
-    runs = bag_to_runs('recording/')          # {run_id: DataFrame}, default topic map
+    from vessel_datasets.topic_map import topic_map_for
+    from vessel_description import load_vessel
+    runs = bag_to_runs('recording/', topic_map_for(load_vessel('patrol_boat')))
 """
 
 from __future__ import annotations
@@ -28,13 +30,15 @@ import numpy as np
 import pandas as pd
 import yaml
 
+from vessel_description.resources import data_dir
+
 from . import format as fmt
-from .bag_source import Bag, BagError, BagReader, find_bags, format_ns, sha256
+from .bag_source import Bag, BagError, BagReader, MessageDefinitions, find_bags, format_ns, sha256
 from .extract import DROP_REASONS, TopicExtractor, TopicSamples
 from .fields import FieldError, check_path, has_header_stamp, numeric_paths
 from .quantities import channel_methods, derive, to_columns
 from .resample import period_ns, plan_runs, sample
-from .topic_map import TopicMap, config_dir, load_topic_map
+from .topic_map import TopicMap
 
 TOOL = 'offline/bag_to_dataset.py'
 PROGRESS_EVERY = 20_000  # messages between progress callbacks
@@ -49,7 +53,6 @@ class ConversionError(ValueError):
 class Options:
     """Conversion settings; defaults come from ``config/convert.yaml``."""
 
-    rate_hz: float = 1.0
     time_source: str = 'header'
     max_gap_s: float = 2.5
     min_run_s: float = 10.0
@@ -69,16 +72,20 @@ class Options:
         opts = cls(**data)
         return replace(opts, **{k: v for k, v in overrides.items() if v is not None})
 
-    def check(self) -> None:
-        """Raise ValueError on an impossible setting."""
+    def check(self, rate_hz: float) -> None:
+        """Raise ValueError on an impossible setting for a vessel sampled at ``rate_hz``."""
         if self.time_source not in ('header', 'log'):
             raise ValueError(f'time source must be header or log, got {self.time_source!r}')
-        for name in ('rate_hz', 'max_gap_s'):
-            if not getattr(self, name) > 0:
-                raise ValueError(f'{name} must be positive, got {getattr(self, name)}')
-        if self.max_gap_s * self.rate_hz < 1.0:
+        if not self.max_gap_s > 0:
+            raise ValueError(f'max_gap_s must be positive, got {self.max_gap_s}')
+        if self.max_gap_s * rate_hz < 1.0:
             raise ValueError(f'max gap {self.max_gap_s} s is shorter than the sample '
-                             f'period {1 / self.rate_hz} s')
+                             f'period {1 / rate_hz} s of the vessel')
+
+
+def config_dir() -> Path:
+    """Directory of the package's YAML defaults (source tree or colcon install)."""
+    return data_dir('vessel_datasets', __file__, 'config')
 
 
 @dataclass
@@ -92,14 +99,15 @@ class BagResult:
     error: str | None = None
 
 
-def bag_to_runs(path: str | os.PathLike, topic_map: TopicMap | None = None,
+def bag_to_runs(path: str | os.PathLike, topic_map: TopicMap,
+                definitions: MessageDefinitions | None = None,
                 **options) -> dict[str, pd.DataFrame]:
     """Run tables of one recording (for tests and notebooks); raises on failure."""
     bags = find_bags([path])
     opts = Options.from_yaml(**options)
     out: dict[str, pd.DataFrame] = {}
     for bag in bags:
-        result = convert_bag(bag, topic_map or load_topic_map(), opts)
+        result = convert_bag(bag, topic_map, opts, definitions=definitions)
         if result.error:
             raise ConversionError(result.error)
         out.update(result.runs)
@@ -107,8 +115,13 @@ def bag_to_runs(path: str | os.PathLike, topic_map: TopicMap | None = None,
 
 
 def convert_bag(bag: Bag, topic_map: TopicMap, opts: Options,
-                progress: Callable[[int], None] | None = None) -> BagResult:
-    """Convert one recording. Never raises for bad input: ``error`` says what failed."""
+                progress: Callable[[int], None] | None = None,
+                definitions: MessageDefinitions | None = None) -> BagResult:
+    """
+    Convert one recording. Never raises for bad input: ``error`` says what failed.
+
+    ``definitions``: ``.msg`` files for message types the bag does not define.
+    """
     result = BagResult(bag.name)
     report = result.report
     report.update(name=bag.name, path=str(bag.path), files=[], notes=[], losses=[],
@@ -117,7 +130,7 @@ def convert_bag(bag: Bag, topic_map: TopicMap, opts: Options,
         report['files'].append({'path': str(f), 'bytes': f.stat().st_size if f.is_file()
                                 else None, 'sha256': sha256(f) if f.is_file() else None})
     try:
-        with BagReader(bag) as reader:
+        with BagReader(bag, definitions) as reader:
             samples = _read(reader, topic_map, opts, progress, report)
     except ConversionError as exc:
         result.error = f'{bag.path}: {exc}'
@@ -214,10 +227,11 @@ def _count(n: int | None) -> str:
 
 def _resample(result: BagResult, samples: Mapping[str, TopicSamples], topic_map: TopicMap,
               opts: Options) -> None:
-    dt = period_ns(opts.rate_hz)
+    rate_hz = topic_map.vessel.rate_hz
+    dt = period_ns(rate_hz)
     max_gap = {t: int(round(topic_map.max_gap_s.get(t, opts.max_gap_s) * 1e9))
                for t in samples}
-    min_samples = int(np.floor(opts.min_run_s * opts.rate_hz + 1e-9)) + 1
+    min_samples = int(np.floor(opts.min_run_s * rate_hz + 1e-9)) + 1
     runs, short, gaps = plan_runs({t: s.t_ns for t, s in samples.items()}, max_gap, dt,
                                   min_samples)
     report = result.report
@@ -237,8 +251,7 @@ def _resample(result: BagResult, samples: Mapping[str, TopicSamples], topic_map:
             values = sample(s.t_ns, s.values, run.grid_ns, [methods[c] for c in s.channels])
             channels.update({c: values[:, i] for i, c in enumerate(s.channels)})
         columns = to_columns(channels, topic_map)
-        table = pd.DataFrame({'t': (run.grid_ns - run.grid_ns[0]) / 1e9,
-                              **{c: columns[c] for c in fmt.REQUIRED_COLUMNS[1:]}})
+        table = pd.DataFrame({'t': (run.grid_ns - run.grid_ns[0]) / 1e9, **columns})
         run_id = f'{result.name}-{k:03d}'
         result.runs[run_id] = table
         source = {'bag': str(result.report['path']), 'start': format_ns(int(run.grid_ns[0])),
@@ -249,18 +262,20 @@ def _resample(result: BagResult, samples: Mapping[str, TopicSamples], topic_map:
 
 def convert_bags(paths: Iterable[str | os.PathLike], topic_map: TopicMap, opts: Options,
                  jobs: int = 1, progress: Callable[[int], None] | None = None,
-                 on_result: Callable[[BagResult], None] | None = None) -> list[BagResult]:
+                 on_result: Callable[[BagResult], None] | None = None,
+                 definitions: MessageDefinitions | None = None) -> list[BagResult]:
     """
     Convert recordings, ``jobs`` bags at a time in separate processes.
 
     ``progress`` receives message counts as they are read; ``on_result`` each finished
-    bag. Results come back in the order of the bags found.
+    bag. Results come back in the order of the bags found. ``definitions``: ``.msg``
+    files for message types the bags do not define.
     """
     bags = find_bags(paths)
     if jobs <= 1 or len(bags) == 1:
         results = []
         for bag in bags:
-            results.append(convert_bag(bag, topic_map, opts, progress))
+            results.append(convert_bag(bag, topic_map, opts, progress, definitions))
             if on_result:
                 on_result(results[-1])
         return results
@@ -269,7 +284,8 @@ def convert_bags(paths: Iterable[str | os.PathLike], topic_map: TopicMap, opts: 
     results: dict[int, BagResult] = {}
     with ProcessPoolExecutor(max_workers=min(jobs, len(bags)), mp_context=ctx,
                              initializer=_init_worker, initargs=(queue,)) as pool:
-        futures = {pool.submit(_worker, bag, topic_map, opts): i for i, bag in enumerate(bags)}
+        futures = {pool.submit(_worker, bag, topic_map, opts, definitions): i
+                   for i, bag in enumerate(bags)}
         pending = set(futures)
         while pending:
             done, pending = wait(pending, timeout=PROGRESS_POLL_S, return_when=FIRST_COMPLETED)
@@ -290,8 +306,10 @@ def _init_worker(queue) -> None:
     _QUEUE = queue
 
 
-def _worker(bag: Bag, topic_map: TopicMap, opts: Options) -> BagResult:
-    return convert_bag(bag, topic_map, opts, _QUEUE.put if _QUEUE is not None else None)
+def _worker(bag: Bag, topic_map: TopicMap, opts: Options,
+            definitions: MessageDefinitions | None) -> BagResult:
+    return convert_bag(bag, topic_map, opts, _QUEUE.put if _QUEUE is not None else None,
+                       definitions)
 
 
 def _drain(queue, progress) -> None:
@@ -305,7 +323,8 @@ def _drain(queue, progress) -> None:
 
 
 def write(out: str | os.PathLike, results: Sequence[BagResult], topic_map: TopicMap,
-          opts: Options, argv: Sequence[str] | None = None) -> Path:
+          opts: Options, argv: Sequence[str] | None = None,
+          definitions: MessageDefinitions | None = None) -> Path:
     """Write the runs of every result as a dataset with its manifest; return its path."""
     runs: dict[str, pd.DataFrame] = {}
     sources: dict[str, dict] = {}
@@ -321,22 +340,31 @@ def write(out: str | os.PathLike, results: Sequence[BagResult], topic_map: Topic
     provenance = {
         'tool': TOOL,
         'argv': list(argv) if argv is not None else None,
-        'config': {**asdict(opts), 'topic_map': topic_map.to_dict()},
+        'config': {**asdict(opts), 'vessel': topic_map.vessel.source,
+                   'topic_map': topic_map.to_dict(),
+                   **(definitions or MessageDefinitions()).to_dict()},
         'seed': opts.seed,
         'versions': versions(),
         'sources': files,
     }
     conversion = {
-        'rate_hz': opts.rate_hz,
+        'rate_hz': topic_map.vessel.rate_hz,
         'time_source': opts.time_source,
         'max_gap_s': opts.max_gap_s,
         'min_run_s': opts.min_run_s,
         'dropped_samples': totals,
         'bags': [{**r.report, 'error': r.error} for r in results],
     }
-    return fmt.write_dataset(out, runs, rate_hz=opts.rate_hz, provenance=provenance,
-                             seed=opts.seed, fractions=opts.split, run_sources=sources,
-                             extra={'conversion': conversion})
+    # Whole recordings go to one split: runs cut from one bag share its conditions, so
+    # splitting them would let a test run's twin train the model.
+    with_runs = [r for r in results if r.runs]
+    by_bag = fmt.split_runs([r.name for r in with_runs], opts.seed, opts.split)
+    split = {name: [run for r in with_runs if r.name in bags for run in r.runs]
+             for name, bags in by_bag.items()}
+    return fmt.write_dataset(out, runs, vessel=topic_map.vessel, provenance=provenance,
+                             seed=opts.seed, fractions=opts.split, split=split,
+                             run_sources=sources,
+                             extra={'conversion': conversion, 'split_by': 'recording'})
 
 
 def versions() -> dict[str, str]:

@@ -1,16 +1,20 @@
 """
-Read and write the dataset format shared by simulation and bag conversion.
+Read and write the dataset format shared by simulation and recording conversion.
 
 A dataset is a directory with ``manifest.json`` and one Parquet table per run in
-``runs/``; docs/conventions.md documents the columns, units and frames. This module is
-the only code that touches those files, so every producer (``offline/simulate.py``,
-``offline/bag_to_dataset.py``) and consumer (training, evaluation, diagnosis) agrees.
+``runs/``; docs/conventions.md documents the columns, units and frames. The manifest
+carries the vessel description (vessel_description) whose vectors the runs hold: time,
+its states, the pose (psi, x, y) and its controls. This module is the only code that
+touches those files, so every producer (``offline/simulate.py``,
+``offline/bag_to_dataset.py``, the table importer) and consumer (training, evaluation,
+diagnosis) agrees.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
+from functools import cached_property
 import json
 import math
 import os
@@ -19,44 +23,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from vessel_description import Vessel, VesselError
+
 FORMAT = 'vessel-dataset/1'
 MANIFEST = 'manifest.json'
 RUNS_DIR = 'runs'
 
-STATE_COLUMNS = ('u', 'v', 'p', 'r', 'phi')
-CONTROL_COLUMNS = ('n', 'delta_port', 'delta_stbd', 'wind_speed', 'wind_dir_cos',
-                   'wind_dir_sin')
-POSE_COLUMNS = ('psi', 'x', 'y')
-REQUIRED_COLUMNS = ('t',) + STATE_COLUMNS + POSE_COLUMNS + CONTROL_COLUMNS
 DEFAULT_FRACTIONS = (0.6, 0.1, 0.3)
 SPLITS = ('train', 'val', 'test')
-
-COLUMN_DOCS: dict[str, dict[str, str]] = {
-    't': {'unit': 's', 'description': "time since the run's first sample"},
-    'u': {'unit': 'm/s', 'description': 'surge velocity, body frame FRD'},
-    'v': {'unit': 'm/s', 'description': 'sway velocity, body frame FRD (starboard +)'},
-    'p': {'unit': 'rad/s', 'description': 'roll rate, body frame FRD'},
-    'r': {'unit': 'rad/s', 'description': 'yaw rate, body frame FRD (turn to starboard +)'},
-    'phi': {'unit': 'rad', 'description': 'roll angle (starboard down +)'},
-    'psi': {'unit': 'rad', 'description': 'heading from north towards east, unwrapped'},
-    'x': {'unit': 'm', 'description': "position north of the run's start (NED)"},
-    'y': {'unit': 'm', 'description': "position east of the run's start (NED)"},
-    'n': {'unit': 'rad/s', 'description': 'shaft speed of both rudder-propellers'},
-    'delta_port': {'unit': 'rad',
-                   'description': 'port rudder-propeller angle (thrust to starboard +)'},
-    'delta_stbd': {'unit': 'rad',
-                   'description': 'starboard rudder-propeller angle (thrust to starboard +)'},
-    'wind_speed': {'unit': 'm/s', 'description': 'measured true wind speed'},
-    'wind_dir_cos': {'unit': '1',
-                     'description': 'cos of the angle the wind comes from, rel. to the bow'},
-    'wind_dir_sin': {'unit': '1',
-                     'description': 'sin of that angle (wind from starboard +)'},
-}
-for _state in STATE_COLUMNS + POSE_COLUMNS:
-    COLUMN_DOCS[_state + '_true'] = {
-        'unit': COLUMN_DOCS[_state]['unit'],
-        'description': 'noise-free truth of ' + _state + ' (simulated data only)',
-    }
+TRUE_SUFFIX = '_true'  # noise-free truth of a state or pose column (simulated data only)
 
 
 class DatasetError(ValueError):
@@ -103,31 +78,33 @@ def _split_counts(n: int, fractions: Sequence[float]) -> list[int]:
     return counts
 
 
-def validate_run(run_id: str, table: pd.DataFrame) -> None:
-    """Raise DatasetError unless a run table has the required, finite, ordered columns."""
-    missing = [c for c in REQUIRED_COLUMNS if c not in table.columns]
+def validate_run(run_id: str, table: pd.DataFrame, columns: Sequence[str]) -> None:
+    """Raise DatasetError unless a run table has ``columns``, finite, with ordered time."""
+    missing = [c for c in columns if c not in table.columns]
     if missing:
         raise DatasetError(f'run {run_id!r} lacks columns {missing}; it has '
                            f'{list(table.columns)}')
     if len(table) < 2:
         raise DatasetError(f'run {run_id!r} has {len(table)} samples; need at least 2')
-    values = table[list(REQUIRED_COLUMNS)].to_numpy(dtype=float)
+    values = table[list(columns)].to_numpy(dtype=float)
     if not np.isfinite(values).all():
-        bad = [c for c in REQUIRED_COLUMNS if not np.isfinite(table[c].to_numpy(float)).all()]
+        bad = [c for c in columns if not np.isfinite(table[c].to_numpy(float)).all()]
         raise DatasetError(f'run {run_id!r} has NaN/Inf in {bad}')
     if not (np.diff(table['t'].to_numpy(float)) > 0).all():
         raise DatasetError(f"run {run_id!r}: column 't' is not strictly increasing")
 
 
 def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], *,
-                  rate_hz: float, provenance: Mapping, seed: int = 0,
+                  vessel: Vessel, provenance: Mapping, seed: int = 0,
                   fractions: Sequence[float] = DEFAULT_FRACTIONS,
                   split: Mapping[str, Iterable[str]] | None = None,
                   run_sources: Mapping[str, Mapping] | None = None,
                   extra: Mapping | None = None) -> Path:
     """
-    Write runs and their manifest to ``out_dir``; return the manifest path.
+    Write runs of ``vessel`` and their manifest to ``out_dir``; return the manifest path.
 
+    Runs are sampled at the vessel's rate; columns beyond its own are kept (documented
+    as extra).
     ``split`` overrides the seeded 60/10/30 assignment with explicit run ids.
     ``run_sources`` gives per-run provenance (e.g. the bag and time span it came
     from). The manifest is written last, through a temporary file, so a crash never
@@ -138,7 +115,7 @@ def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], 
     out = Path(out_dir)
     (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
     for run_id, table in runs.items():
-        validate_run(run_id, table)
+        validate_run(run_id, table, vessel.dataset_columns)
     if split is None:
         split_ids = split_runs(list(runs), seed, fractions)
     else:
@@ -163,12 +140,14 @@ def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], 
             'split': split_of.get(run_id, 'unused'),
             'source': dict((run_sources or {}).get(run_id, {})),
         })
+    docs = column_docs(vessel)
     manifest = {
         'format': FORMAT,
-        'rate_hz': float(rate_hz),
-        'state_columns': list(STATE_COLUMNS),
-        'control_columns': list(CONTROL_COLUMNS),
-        'columns': {c: COLUMN_DOCS.get(c, {'unit': '?', 'description': 'extra column'})
+        'rate_hz': float(vessel.rate_hz),
+        'vessel': vessel.to_dict(),
+        'state_columns': list(vessel.state_names),
+        'control_columns': list(vessel.control_names),
+        'columns': {c: docs.get(c, {'unit': '?', 'description': 'extra column'})
                     for c in sorted(columns)},
         'runs': entries,
         'split': {'seed': int(seed), 'fractions': [float(f) for f in fractions],
@@ -181,6 +160,16 @@ def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], 
     tmp.write_text(json.dumps(manifest, indent=2, sort_keys=False, default=_json_default))
     tmp.replace(path)
     return path
+
+
+def column_docs(vessel: Vessel) -> dict[str, dict[str, str]]:
+    """Return unit and meaning of every column a run of ``vessel`` may have."""
+    docs = vessel.column_docs()
+    for name in vessel.state_names + ('psi', 'x', 'y'):
+        docs[name + TRUE_SUFFIX] = {'unit': docs[name]['unit'],
+                                    'description': f'noise-free truth of {name} '
+                                                   f'(simulated data only)'}
+    return docs
 
 
 def _json_default(value):
@@ -205,6 +194,22 @@ class Dataset:
         """Return the sampling rate of every run (Hz)."""
         return float(self.manifest['rate_hz'])
 
+    @cached_property
+    def vessel(self) -> Vessel:
+        """Return the vessel description the runs were made for."""
+        data = self.manifest.get('vessel')
+        if data is None:
+            raise DatasetError(f'{self.root}: the manifest names no vessel (a dataset made '
+                               f'before vessel files); convert or simulate it again')
+        try:
+            vessel = Vessel.from_dict(data, source=f'{self.root / MANIFEST}')
+        except VesselError as exc:
+            raise DatasetError(str(exc)) from None
+        if vessel.rate_hz != self.rate_hz:
+            raise DatasetError(f'{self.root}: runs at {self.rate_hz} Hz, but its vessel '
+                               f'{vessel.name!r} says {vessel.rate_hz} Hz')
+        return vessel
+
     def run_ids(self, split: str | None = None) -> list[str]:
         """Run ids, all or those of one split ('train', 'val', 'test')."""
         if split is None:
@@ -219,7 +224,7 @@ class Dataset:
         if entry is None:
             raise DatasetError(f'{self.root}: no run {run_id!r}')
         table = pd.read_parquet(self.root / entry['file'])
-        validate_run(run_id, table)
+        validate_run(run_id, table, self.vessel.dataset_columns)
         return table
 
     def load_split(self, split: str) -> dict[str, pd.DataFrame]:

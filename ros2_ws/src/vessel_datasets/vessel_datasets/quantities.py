@@ -7,8 +7,9 @@ Two steps around resampling:
   together: an orientation becomes roll ``phi`` and an unwrapped heading ``psi``
   (angles must be unwrapped before they are interpolated), a wind speed and angle
   become a velocity vector.
-* ``to_columns`` works on one run's resampled grid and produces the dataset columns:
-  body velocities in FRD, position north/east of the run's start, controls, and the
+* ``to_columns`` works on one run's resampled grid and produces the vessel's dataset
+  columns: body velocities in FRD (roll only where the vessel models it), position
+  north/east of the run's start, its actuators, and, where it has a wind input, the
   wind's speed and direction relative to the bow.
 
 Every ENU/FLU <-> NED/FRD change goes through ``vessel_physics.frames``, the one place
@@ -26,7 +27,7 @@ import numpy as np
 from vessel_physics import frames
 
 from .extract import TopicSamples
-from .topic_map import TopicMap
+from .topic_map import ACTUATOR_PREFIX, TopicMap
 
 # WGS 84 ellipsoid, for projecting latitude/longitude onto a local north/east plane.
 WGS84_A_M = 6378137.0
@@ -79,19 +80,24 @@ def polar_to_vector(speed, from_angle) -> tuple[np.ndarray, np.ndarray]:
 def channel_methods(topic_map: TopicMap) -> dict[str, str]:
     """Resampling method of every channel, derived ones included."""
     out = {leaf.channel: topic_map.resample[leaf.group] for leaf in topic_map.leaves()}
-    out.update({c: topic_map.resample[g] for c, g in DERIVED_GROUP.items()})
+    out.update({c: topic_map.resample[g] for c, g in DERIVED_GROUP.items()
+                if topic_map.has_group(g)})
     return out
 
 
 def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap) -> dict[str, np.ndarray]:
-    """Dataset columns (docs/conventions.md) from one run's resampled channels."""
+    """Dataset columns of the map's vessel (docs/conventions.md) from resampled channels."""
+    vessel = topic_map.vessel
     out: dict[str, np.ndarray] = {}
-    body = (ch['surge'], ch['sway'], ch['roll_rate'], ch['yaw_rate'])
+    zero = np.zeros_like(np.asarray(ch['surge'], float))
+    body = (ch['surge'], ch['sway'], ch.get('roll_rate', zero), ch['yaw_rate'])
     if topic_map.frames['body_velocity'] == 'flu':
         body = frames.twist_flu_to_frd(*body)
-    out['u'], out['v'], out['p'], out['r'] = (np.asarray(a, float) for a in body)
+    u, v, p, r = (np.asarray(a, float) for a in body)
+    out['u'], out['v'], out['r'] = u, v, r
+    if vessel.has_roll:
+        out['p'], out['phi'] = p, np.asarray(ch['phi'], float)
 
-    out['phi'] = np.asarray(ch['phi'], float)
     psi = np.asarray(ch['psi'], float)
     # Unwrapping leaves a multiple of 2 pi; start every run inside [-pi, pi].
     out['psi'] = psi - 2.0 * math.pi * np.round(psi[0] / (2.0 * math.pi))
@@ -105,17 +111,18 @@ def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap) -> dict[str, n
     north, east = np.asarray(north, float), np.asarray(east, float)
     out['x'], out['y'] = north - north[0], east - east[0]
 
-    out['n'] = np.asarray(ch['shaft_speed'], float)
-    out['delta_port'] = np.asarray(ch['rudder_port'], float)
-    out['delta_stbd'] = np.asarray(ch['rudder_stbd'], float)
+    for name in vessel.actuator_names:
+        out[name] = np.asarray(ch[ACTUATOR_PREFIX + name], float)
 
-    wx, wy = np.asarray(ch['wind_x'], float), np.asarray(ch['wind_y'], float)
-    if topic_map.frames['wind'] == 'frd':
-        wx, wy, _ = frames.body_frd_to_flu(wx, wy)
-    speed, cos, sin = frames.wind_from_flu(wx, wy)
-    out['wind_speed'] = np.asarray(speed, float)
-    out['wind_dir_cos'], out['wind_dir_sin'] = np.asarray(cos, float), np.asarray(sin, float)
-    return out
+    if 'wind' in vessel.environment:
+        wx, wy = np.asarray(ch['wind_x'], float), np.asarray(ch['wind_y'], float)
+        if topic_map.frames['wind'] == 'frd':
+            wx, wy, _ = frames.body_frd_to_flu(wx, wy)
+        speed, cos, sin = frames.wind_from_flu(wx, wy)
+        out['wind_speed'] = np.asarray(speed, float)
+        out['wind_dir_cos'], out['wind_dir_sin'] = (np.asarray(cos, float),
+                                                    np.asarray(sin, float))
+    return {c: out[c] for c in vessel.dataset_columns[1:]}
 
 
 def latlon_to_local(lat_deg, lon_deg) -> tuple[np.ndarray, np.ndarray]:

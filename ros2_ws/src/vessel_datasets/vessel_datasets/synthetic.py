@@ -1,6 +1,9 @@
 """
 Synthetic recordings of the simulator's topics, for tests, benchmarks and examples.
 
+``simulator_vessel`` and ``simulated_run_table`` turn the batch simulator's output into
+dataset tables of its vessel file (``offline/simulate.py``, the diagnosis scenarios).
+
 ``demo_trajectory`` makes a smooth, plausible manoeuvre in the model's frames (NED/FRD,
 docs/conventions.md); ``sim_messages`` turns it into the messages the simulator
 publishes (ENU/FLU, through ``vessel_physics.frames``), and ``write_bag`` records them
@@ -11,20 +14,24 @@ the trajectory back, which tests the whole chain without a simulator.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 import math
 import os
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
 
+from vessel_description import Vessel, load_vessel
 from vessel_physics import frames
+from vessel_physics.simulator import TRUE_KEYS
 
-from .format import CONTROL_COLUMNS, POSE_COLUMNS, STATE_COLUMNS
+from .format import TRUE_SUFFIX
 
+SIM_VESSEL = 'patrol_boat'  # the vessel file whose topics the simulator publishes
 SIM_TOPICS = {
     '/vessel/odom': 'nav_msgs/msg/Odometry',
     '/vessel/actuators': 'sensor_msgs/msg/JointState',
@@ -33,6 +40,17 @@ SIM_TOPICS = {
 JOINT_NAMES = ('propeller', 'rudder_port', 'rudder_stbd')
 DEFAULT_START_NS = 1_700_000_000 * 1_000_000_000  # 2023-11-14, an arbitrary fixed epoch
 DEFAULT_LOG_DELAY_NS = 2_000_000  # recorders receive a message ~ms after its stamp
+
+
+def simulator_vessel(rate_hz: float) -> Vessel:
+    """Return the simulator's vessel file at a simulation's output rate (Hz)."""
+    return replace(load_vessel(SIM_VESSEL), rate_hz=float(rate_hz))
+
+
+def simulated_run_table(data: dict, j: int, vessel: Vessel) -> pd.DataFrame:
+    """Run ``j`` of a batch simulator result as a dataset table, noise-free truth included."""
+    columns = vessel.dataset_columns + tuple(k + TRUE_SUFFIX for k in TRUE_KEYS)
+    return pd.DataFrame({c: data[c][j] for c in columns})
 
 
 @dataclass
@@ -74,7 +92,7 @@ def demo_trajectory(n: int, rate_hz: float = 1.0, start_ns: int = DEFAULT_START_
                'n': shaft, 'delta_port': rudder, 'delta_stbd': rudder.copy(),
                'wind_speed': wind_speed, 'wind_dir_cos': np.cos(wind_dir),
                'wind_dir_sin': np.sin(wind_dir)}
-    assert set(columns) == set(STATE_COLUMNS + POSE_COLUMNS + CONTROL_COLUMNS)
+    assert set(columns) == set(load_vessel(SIM_VESSEL).dataset_columns[1:])
     return Trajectory(start_ns + np.round(t * 1e9).astype(np.int64), columns)
 
 

@@ -1,11 +1,13 @@
 """
-Topic map: which message field of which topic gives each quantity of the dataset.
+Topic map: which message field of which topic gives each quantity of a vessel.
 
-A topic map is a YAML file (``config/topic_map.yaml`` is the simulator's; docs/bags.md
-documents the keys). It names quantities in the frame the *messages* use, with a frame
-tag per group; the converter turns them into the model's frames through
-``vessel_physics.frames``. Loading checks the structure only; whether the topics and
-fields exist is checked against each bag (``fields.py``).
+A topic map is the ``recordings.topics`` section of a vessel file (vessel_description;
+docs/bags.md documents the keys). It names quantities in the frame the *messages* use,
+with a frame tag per group; the converter turns them into the model's frames through
+``vessel_physics.frames``. Which entries a group needs follows the vessel: a roll rate
+and roll angle only where roll is modelled, one entry per actuator it declares, a wind
+group only where it declares a wind input. Loading checks the structure only; whether
+the topics and fields exist is checked against each bag (``fields.py``).
 
 Inside the converter a map is a flat list of :class:`Leaf` -- one scalar read from one
 topic -- grouped into *channels* (named series) that are resampled and converted.
@@ -23,36 +25,66 @@ from typing import Any
 
 import yaml
 
+from vessel_description import Vessel
+
 FORMAT = 'vessel-topic-map/1'
 RESAMPLE_METHODS = ('linear', 'hold')
 TIME_SOURCES = ('header', 'log')
 
-# Group -> (allowed frames, default frame, default resampling, alternatives). Each
-# alternative is a tuple of entry names that together give the group.
-GROUPS: dict[str, tuple[tuple[str, ...], str | None, str, tuple[tuple[str, ...], ...]]] = {
-    'body_velocity': (('flu', 'frd'), 'flu', 'linear',
-                      (('surge', 'sway', 'roll_rate', 'yaw_rate'),)),
-    'attitude': (('enu_flu', 'ned_frd'), 'enu_flu', 'linear',
-                 (('quaternion',), ('roll', 'heading'))),
-    'position': (('enu', 'ned'), 'enu', 'linear', (('point',), ('latlon',))),
-    'actuators': ((), None, 'hold', (('shaft_speed', 'rudder_port', 'rudder_stbd'),)),
-    'wind': (('flu', 'frd'), 'flu', 'hold', (('velocity',), ('speed', 'from_angle'))),
+# Group -> (allowed frames, default frame, default resampling). Which entries a group
+# takes depends on the vessel (``_alternatives``).
+GROUPS: dict[str, tuple[tuple[str, ...], str | None, str]] = {
+    'body_velocity': (('flu', 'frd'), 'flu', 'linear'),
+    'attitude': (('enu_flu', 'ned_frd'), 'enu_flu', 'linear'),
+    'position': (('enu', 'ned'), 'enu', 'linear'),
+    'actuators': ((), None, 'hold'),
+    'wind': (('flu', 'frd'), 'flu', 'hold'),
 }
+# Groups a vessel may lack: wind only where it declares a wind input.
+OPTIONAL_GROUPS = ('wind',)
 
 # Entries that name a composite field: the components read from it and the channels
-# they fill. Scalars fill a channel of their own name ('wind_' + name for wind).
+# they fill. Scalars fill the channel ``channel_of`` names.
 COMPOSITES: dict[str, tuple[tuple[str, str], ...]] = {
     'quaternion': (('x', 'qx'), ('y', 'qy'), ('z', 'qz'), ('w', 'qw')),
     'point': (('x', 'pos_x'), ('y', 'pos_y')),
     'latlon': (('latitude', 'lat'), ('longitude', 'lon')),
     'velocity': (('x', 'wind_x'), ('y', 'wind_y')),
 }
+# Scalar position entries fill the same channels as a point's components.
+POSITION_SCALARS = {'x': 'pos_x', 'y': 'pos_y'}
+ACTUATOR_PREFIX = 'actuator.'
 # Composite entries whose components must not be scaled (a unit quaternion, degrees).
 UNSCALED = ('quaternion', 'latlon')
 # Entries whose samples must come from one message (they are combined per message).
 SAME_TOPIC = {'attitude': ('quaternion',), 'wind': ('speed', 'from_angle'),
-              'position': ('point', 'latlon')}
+              'position': ('point', 'latlon', 'x', 'y')}
 ENTRY_KEYS = ('topic', 'field', 'scale', 'offset', 'type')
+
+
+def channel_of(group: str, name: str) -> str:
+    """Channel a scalar entry fills (actuators are prefixed: their names are the user's)."""
+    if group == 'actuators':
+        return ACTUATOR_PREFIX + name
+    if group == 'wind':
+        return f'wind_{name}'
+    if group == 'position':
+        return POSITION_SCALARS[name]
+    return name
+
+
+def _alternatives(group: str, vessel: Vessel) -> tuple[tuple[str, ...], ...]:
+    """Entry sets that give ``group`` for this vessel (roll only where it is modelled)."""
+    roll = vessel.has_roll
+    if group == 'body_velocity':
+        return (('surge', 'sway') + (('roll_rate',) if roll else ()) + ('yaw_rate',),)
+    if group == 'attitude':
+        return (('quaternion',), ('heading', 'roll') if roll else ('heading',))
+    if group == 'position':
+        return (('point',), ('latlon',), ('x', 'y'))
+    if group == 'actuators':
+        return (vessel.actuator_names,)
+    return (('velocity',), ('speed', 'from_angle'))
 
 
 class TopicMapError(ValueError):
@@ -92,8 +124,9 @@ class Leaf:
 
 @dataclass(frozen=True)
 class TopicMap:
-    """A parsed topic map."""
+    """A parsed topic map, bound to the vessel whose vectors it fills."""
 
+    vessel: Vessel
     entries: tuple[Entry, ...]
     frames: Mapping[str, str]
     resample: Mapping[str, str]
@@ -105,6 +138,10 @@ class TopicMap:
         """Whether an entry of this name (e.g. 'quaternion', 'latlon') is mapped."""
         return any(e.name == name for e in self.entries)
 
+    def has_group(self, group: str) -> bool:
+        """Whether the map reads ``group`` (e.g. 'wind')."""
+        return group in self.resample
+
     @property
     def topics(self) -> list[str]:
         """Topics the map reads, in first-use order."""
@@ -114,15 +151,14 @@ class TopicMap:
         """Every scalar to read, composite entries expanded into their components."""
         out = []
         for e in self.entries:
-            if e.name in COMPOSITES:
+            if e.name in COMPOSITES and e.group != 'actuators':
                 for component, channel in COMPOSITES[e.name]:
                     path = f'{e.field}.{component}' if e.field else component
                     out.append(Leaf(channel, e.group, e.topic, path, e.scale, e.offset,
                                     e.label))
             else:
-                channel = f'wind_{e.name}' if e.group == 'wind' else e.name
-                out.append(Leaf(channel, e.group, e.topic, e.field, e.scale, e.offset,
-                                e.label))
+                out.append(Leaf(channel_of(e.group, e.name), e.group, e.topic, e.field,
+                                e.scale, e.offset, e.label))
         return out
 
     def to_dict(self) -> dict[str, Any]:
@@ -130,42 +166,38 @@ class TopicMap:
         return copy.deepcopy(dict(self.source))
 
 
-def default_path() -> Path:
-    """Path of the simulator's topic map shipped with the package."""
-    return config_dir() / 'topic_map.yaml'
+def topic_map_for(vessel: Vessel, override: str | os.PathLike | None = None) -> TopicMap:
+    """
+    Return the topic map of a vessel: its file's ``recordings.topics``, or an override file.
 
-
-def config_dir() -> Path:
-    """Directory of the package's YAML defaults (source tree or colcon install)."""
-    source = Path(__file__).resolve().parent.parent / 'config'
-    if source.is_dir():
-        return source
-    try:  # installed by colcon: the config lives in the package's share directory
-        from ament_index_python.packages import get_package_share_directory
-        return Path(get_package_share_directory('vessel_datasets')) / 'config'
-    except (ImportError, LookupError):
-        return source
-
-
-def load_topic_map(path: str | os.PathLike | None = None) -> TopicMap:
-    """Load and check a topic-map YAML file (the simulator's when ``path`` is None)."""
-    path = Path(path) if path is not None else default_path()
+    An override is a YAML file holding just the topic map, for a vessel recorded with
+    other topics than its description names.
+    """
+    if override is not None:
+        path = Path(override)
+        try:
+            data = yaml.safe_load(path.read_text())
+        except OSError as exc:
+            raise TopicMapError(f'topic map {path}: cannot read ({exc.strerror})') from None
+        except yaml.YAMLError as exc:
+            raise TopicMapError(f'topic map {path}: not valid YAML ({exc})') from None
+        where = f'topic map {path}'
+    else:
+        data = vessel.recordings.get('topics')
+        where = f'vessel {vessel.source}: recordings.topics'
+        if data is None:
+            raise TopicMapError(f'{where} is missing: the vessel file says nothing about '
+                                f'which topics carry its quantities')
     try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise TopicMapError(f'topic map {path}: cannot read ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise TopicMapError(f'topic map {path}: not valid YAML ({exc})') from None
-    try:
-        return parse_topic_map(data)
+        return parse_topic_map(data, vessel)
     except TopicMapError as exc:
-        raise TopicMapError(f'topic map {path}: {exc}') from None
+        raise TopicMapError(f'{where}: {exc}') from None
 
 
-def parse_topic_map(data: Any) -> TopicMap:
-    """Check a topic map given as a mapping (the parsed YAML) and build it."""
+def parse_topic_map(data: Any, vessel: Vessel) -> TopicMap:
+    """Check a topic map given as a mapping (the parsed YAML) against a vessel; build it."""
     if not isinstance(data, Mapping):
-        raise TopicMapError('expected a mapping at the top level')
+        raise TopicMapError('expected a mapping of groups')
     if data.get('format', FORMAT) != FORMAT:
         raise TopicMapError(f'format {data.get("format")!r}, expected {FORMAT!r}')
     known = set(GROUPS) | {'format', 'stamps', 'max_gap_s'}
@@ -174,19 +206,27 @@ def parse_topic_map(data: Any) -> TopicMap:
     entries: list[Entry] = []
     frames: dict[str, str] = {}
     resample: dict[str, str] = {}
-    for group, (allowed, default_frame, default_resample, alternatives) in GROUPS.items():
+    for group, (allowed, default_frame, default_resample) in GROUPS.items():
         spec = data.get(group)
+        needed = group not in OPTIONAL_GROUPS or group in vessel.environment
+        if spec is None and not needed:
+            continue
+        if spec is not None and not needed:
+            raise TopicMapError(f'maps a {group!r} group, but vessel {vessel.name!r} declares '
+                                f"no {group} input (add it to the vessel's environment, "
+                                f'or remove the group)')
         if not isinstance(spec, Mapping):
             raise TopicMapError(f'missing group {group!r} (a mapping of entries)')
-        group_entries, frame, method = _parse_group(group, spec, allowed, default_frame,
-                                                    default_resample, alternatives)
+        group_entries, frame, method = _parse_group(
+            group, spec, allowed, default_frame, default_resample,
+            _alternatives(group, vessel))
         entries += group_entries
         if frame is not None:
             frames[group] = frame
         resample[group] = method
     stamps = _parse_overrides(data.get('stamps', {}), 'stamps', _time_source)
     gaps = _parse_overrides(data.get('max_gap_s', {}), 'max_gap_s', _positive)
-    return TopicMap(entries=tuple(entries), frames=frames, resample=resample,
+    return TopicMap(vessel=vessel, entries=tuple(entries), frames=frames, resample=resample,
                     stamps=stamps, max_gap_s=gaps, source=_plain(data))
 
 
@@ -222,14 +262,15 @@ def _parse_entry(group: str, name: str, spec: Any) -> Entry:
     topic = spec.get('topic')
     if not isinstance(topic, str) or not topic.startswith('/'):
         raise TopicMapError(f'{label}.topic must be an absolute topic name, got {topic!r}')
+    composite = group != 'actuators' and name in COMPOSITES
     path = spec.get('field')
-    if path is None or not isinstance(path, str) or (not path and name not in COMPOSITES):
+    if path is None or not isinstance(path, str) or (not path and not composite):
         raise TopicMapError(f'{label}.field must be a field path, got {path!r}')
     scale, offset = spec.get('scale', 1.0), spec.get('offset', 0.0)
     for key, value in (('scale', scale), ('offset', offset)):
         if not isinstance(value, (int, float)) or not math.isfinite(value):
             raise TopicMapError(f'{label}.{key} must be a finite number, got {value!r}')
-    if name in UNSCALED and (scale != 1.0 or offset != 0.0):
+    if composite and name in UNSCALED and (scale != 1.0 or offset != 0.0):
         raise TopicMapError(f'{label} cannot be scaled or offset')
     msgtype = spec.get('type')
     if msgtype is not None and not isinstance(msgtype, str):

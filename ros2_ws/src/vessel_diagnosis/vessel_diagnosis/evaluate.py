@@ -20,14 +20,14 @@ data), else the measured states.
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 
 import numpy as np
 
 from hybrid_models.metrics import forecast_metrics
-from hybrid_models.vehicle import SHIP
 from vessel_diagnosis.design import STATES
 from vessel_diagnosis.predict import Predictor
-from vessel_diagnosis.recordings import Run
+from vessel_diagnosis.recordings import DIAGNOSED_VESSEL, Run
 from vessel_physics.augmented import Physics
 
 HORIZON_MARKS = (1, 60, 300, 600, 900)   # forecast steps at which RMSE per state is kept
@@ -98,12 +98,13 @@ def evaluate(runs: Sequence[Run], models: Mapping[str, tuple[Physics, Mapping]],
     out: dict = {'runs': [r.run_id for r in runs], 'start_sample': start,
                  'target': 'true' if all(r.z_true is not None for r in runs) else 'measured',
                  'one_step_rmse': {}, 'forecast': {}, 'rmse_by_step': {}}
+    vessel = replace(DIAGNOSED_VESSEL, rate_hz=1.0 / runs[0].dt) if runs else DIAGNOSED_VESSEL
     for name, (physics, currents) in models.items():
         err = one_step_errors(runs, physics, currents, start, settings.prediction.substeps)
         out['one_step_rmse'][name] = _rmse(err) if len(err) else None
         pred, true = forecasts(runs, physics, currents, start, settings)
         if len(pred):
-            metrics = forecast_metrics(pred, true, SHIP)
+            metrics = forecast_metrics(pred, true, vessel)
             out['forecast'][name] = metrics
             out['rmse_by_step'][name] = {
                 str(k): _rmse(pred[:, k - 1] - true[:, k - 1]) for k in HORIZON_MARKS

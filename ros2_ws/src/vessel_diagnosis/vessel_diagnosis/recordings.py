@@ -16,15 +16,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from vessel_datasets.format import (
-    CONTROL_COLUMNS,
-    MANIFEST,
-    STATE_COLUMNS,
-    DatasetError,
-    read_dataset,
-    split_runs,
-)
+from vessel_datasets.format import MANIFEST, DatasetError, read_dataset, split_runs
+from vessel_datasets.topic_map import topic_map_for
+from vessel_description import VesselError, load_vessel
 
+# The diagnosis' physics family is the 4-DOF patrol-boat model (vessel_physics), so it
+# diagnoses recordings with that vessel's vectors; others are refused with one line.
+DIAGNOSED_VESSEL = load_vessel('patrol_boat')
+STATE_COLUMNS = DIAGNOSED_VESSEL.state_names
+CONTROL_COLUMNS = DIAGNOSED_VESSEL.control_names
 REQUIRED = ('t',) + STATE_COLUMNS + ('psi',) + CONTROL_COLUMNS
 WHY = {  # what each group of columns is needed for (for error messages)
     'u': 'body velocities (/vessel/odom twist)', 'v': 'body velocities (/vessel/odom twist)',
@@ -95,9 +95,13 @@ def run_from_table(run_id: str, table: pd.DataFrame, split: str = 'unused',
 def _load_dataset(path: Path) -> list[Run]:
     try:
         ds = read_dataset(path)
+        DIAGNOSED_VESSEL.check_compatible(ds.vessel, f'dataset {path}')
         entries = {r['id']: r for r in ds.manifest['runs']}
         return [run_from_table(rid, ds.load(rid), entries[rid].get('split', 'unused'),
                                entries[rid].get('source', {})) for rid in ds.run_ids()]
+    except VesselError as exc:
+        raise RecordingsError(f"{exc}; the diagnosis models the patrol boat's physics "
+                              f'only') from None
     except (DatasetError, OSError, KeyError) as exc:
         raise RecordingsError(f'{path}: cannot read the dataset ({exc})') from None
 
@@ -106,7 +110,7 @@ def _load_bag(path: Path, topic_map=None) -> list[Run]:
     from vessel_datasets.bag_source import BagError
     from vessel_datasets.convert import ConversionError, bag_to_runs
     try:
-        tables = bag_to_runs(path, topic_map)
+        tables = bag_to_runs(path, topic_map or topic_map_for(DIAGNOSED_VESSEL))
     except (ConversionError, BagError, OSError, ValueError) as exc:
         text = ' '.join(str(exc).split())
         raise RecordingsError(f'{path}: cannot convert the recording: {text}') from None

@@ -13,19 +13,18 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
-import pandas as pd
 import yaml
 
-from vessel_datasets.format import REQUIRED_COLUMNS, write_dataset
+from vessel_datasets.format import write_dataset
+from vessel_datasets.synthetic import simulated_run_table, simulator_vessel
 from vessel_diagnosis.settings import config_dir
 from vessel_physics.augmented import Physics, write_physics
 from vessel_physics.config import SimConfig, load_config
 from vessel_physics.params import load_named_vessel
-from vessel_physics.simulator import TRUE_KEYS, Simulator
+from vessel_physics.simulator import Simulator
 from vessel_physics.terms import SIMULATOR_TERMS
 
 NOMINAL_VESSEL = 'patrol_vessel.yaml'
-TRUE_COLUMNS = tuple(k + '_true' for k in TRUE_KEYS)
 
 
 @lru_cache(maxsize=1)
@@ -83,14 +82,14 @@ def simulate_scenario(name: str, out: str | Path, runs: int, hours: float, seed:
     out = Path(out)
     tables, sources = {}, {}
     seconds = hours * 3600.0
+    vessel = simulator_vessel(cfg.output_rate_hz)
     for first in range(0, runs, chunk):
         n = min(chunk, runs - first)
         sim = Simulator(cfg, n_runs=n, seed=seed, run_offset=first)
         data = sim.run(seconds)
         for j in range(n):
             run_id = f'run_{first + j:03d}'
-            tables[run_id] = pd.DataFrame({c: data[c][j] for c in REQUIRED_COLUMNS
-                                           + TRUE_COLUMNS})
+            tables[run_id] = simulated_run_table(data, j, vessel)
             sources[run_id] = {
                 'scenario': name, 'seed': seed, 'run_index': first + j,
                 'wave_hs_m': float(sim.waves.hs[j]), 'wave_tp_s': float(sim.waves.tp[j]),
@@ -101,7 +100,7 @@ def simulate_scenario(name: str, out: str | Path, runs: int, hours: float, seed:
     provenance = {'tool': 'vessel_diagnosis.scenarios', 'scenario': name,
                   'description': scenario.description, 'expect': list(scenario.expect),
                   'config': cfg.to_dict(), 'seed': seed, 'runs': runs, 'hours': hours}
-    write_dataset(out, tables, rate_hz=cfg.output_rate_hz, provenance=provenance, seed=seed,
+    write_dataset(out, tables, vessel=vessel, provenance=provenance, seed=seed,
                   run_sources=sources)
     write_physics(scenario.nominal, out / 'nominal_physics.yaml', NOMINAL_VESSEL,
                   f'Nominal physics of scenario {name!r}: what the diagnosis is told.')

@@ -127,20 +127,23 @@ def hull_damping(z, c, params: VesselParams):
 
 def unit_thrust(u, v, n_rps, delta, params: VesselParams):
     """
-    Thrust (N, >= 0) of rudder-propellers at angles ``delta`` and ``n_rps`` (rev/s).
+    Thrust (N) of rudder-propellers at angles ``delta`` and ``n_rps`` (rev/s, signed).
 
-    Va = max(0, (1 - w)(u cos delta + v sin delta)), J = Va / (n D),
-    T = max(0, rho D^4 n^2 KT(J)) with KT = KT0 + KT1 J + KT2 J^2, written as
-    rho (KT0 D^4 n^2 + KT1 D^3 n Va + KT2 D^2 Va^2) so that n = 0 needs no division.
+    Va = max(0, (1 - w)(u cos delta + v sin delta)), J = Va / (|n| D),
+    |T| = max(0, rho D^4 n^2 KT(J)) with KT = KT0 + KT1 J + KT2 J^2, written as
+    rho (KT0 D^4 n^2 + KT1 D^3 |n| Va + KT2 D^2 Va^2) so that n = 0 needs no division.
+    The thrust keeps the sign of the shaft speed: a propeller turning astern pulls
+    astern (the open-water curve is the ahead one, a first approximation astern).
     Arguments broadcast against each other.
     """
     xp = namespace(delta)
     d = params.prop_diameter
     va = xp.maximum((1.0 - params.wake_fraction) * (u * xp.cos(delta) + v * xp.sin(delta)),
                     0.0)
-    thrust = params.rho * d * d * (params.KT0 * d * d * n_rps * n_rps
-                                   + params.KT1 * d * n_rps * va + params.KT2 * va * va)
-    return xp.maximum(thrust, 0.0)
+    n_abs = xp.abs(n_rps)
+    magnitude = params.rho * d * d * (params.KT0 * d * d * n_abs * n_abs
+                                      + params.KT1 * d * n_abs * va + params.KT2 * va * va)
+    return xp.sign(n_rps) * xp.maximum(magnitude, 0.0)
 
 
 def propulsion(z, c, params: VesselParams):

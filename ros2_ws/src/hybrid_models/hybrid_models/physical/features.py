@@ -68,6 +68,19 @@ MASK_MODES: dict[str, dict[str, tuple[str, ...]]] = {
 }
 
 
+def term_states(term: Term) -> frozenset[str]:
+    """Return the states a hull term reads (found by evaluating it on a recorder)."""
+    seen: set[str] = set()
+
+    class Recorder(dict):
+        def __missing__(self, key):
+            seen.add(key)
+            return 1.0
+
+    term(Recorder())
+    return frozenset(seen)
+
+
 class FeatureMap:
     """Maps (z, c) to named features (B, F); ``masks[state]`` lists the features it uses."""
 
@@ -82,13 +95,16 @@ class FeatureMap:
         elif kind == 'qua':
             self.names = tuple(linear + [f'{n}^2' for n in linear])
         else:
-            missing = {'u', 'v', 'p', 'r', 'phi'} - set(spec.state_names)
+            missing = {'u', 'v', 'r'} - set(spec.state_names)
             if missing:
                 raise ValueError(f'Blanke features need ship states; {spec.name} lacks '
                                  f'{sorted(missing)}')
             if masks not in MASK_MODES:
                 raise ValueError(f'unknown mask mode {masks!r}; use {sorted(MASK_MODES)}')
-            self.names = tuple(linear + list(BLANKE_TERMS))
+            # A 3-DOF vessel keeps the hull terms of its own states (no roll terms).
+            have = set(spec.state_names)
+            self.terms = [t for t, f in BLANKE_TERMS.items() if term_states(f) <= have]
+            self.names = tuple(linear + self.terms)
         self.masks = {s: self._mask_names(s, linear) for s in spec.state_names}
 
     def _mask_names(self, state: str, linear: list[str]) -> tuple[str, ...]:
@@ -96,7 +112,7 @@ class FeatureMap:
             return self.names
         terms = {t for dof in MASK_MODES[self.mask_mode][state] for t in DOF_TERMS[dof]}
         # Keep the canonical order of BLANKE_TERMS; every row keeps all linear terms.
-        return tuple(linear + [t for t in BLANKE_TERMS if t in terms])
+        return tuple(linear + [t for t in self.terms if t in terms])
 
     def mask_matrix(self) -> torch.Tensor:
         """Boolean (n_state, F): row i marks the features of state i."""
@@ -112,7 +128,7 @@ class FeatureMap:
         if self.kind == 'qua':
             return xp.concat([linear, linear * linear], axis=-1)
         s = {name: z[..., i] for i, name in enumerate(self.spec.state_names)}
-        blanke = xp.stack([f(s) for f in BLANKE_TERMS.values()], axis=-1)
+        blanke = xp.stack([BLANKE_TERMS[t](s) for t in self.terms], axis=-1)
         return xp.concat([linear, blanke], axis=-1)
 
     def __call__(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:

@@ -15,7 +15,8 @@ at dt = 1 s.
   ``offline/diagnose.py`` writes; the checkpoint keeps the whole file inline.
 
 The terms are written against the Array API, so this module holds no physics of its
-own: it picks terms, sub-steps and parameters (default: the nominal vessel).
+own: it picks terms, sub-steps and parameters (default: those the vessel file names
+under ``physics``; a vessel without them is refused).
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from dataclasses import asdict
 import torch
 
 from hybrid_models.physical.base import PhysicalModel
-from hybrid_models.vehicle import VehicleSpec
+from hybrid_models.vehicle import VehicleSpec, load_vessel
 from vessel_physics.arrays import namespace
 from vessel_physics.augmented import Physics, load_physics, physics_from_dict
 from vessel_physics.integrator import rk4_step
@@ -35,7 +36,8 @@ from vessel_physics.terms import MIN_TERMS, PRO_TERMS
 
 TERM_SETS = {'min': MIN_TERMS, 'pro': PRO_TERMS}
 PHYSICS_FILE_KIND = 'physics'
-DEFAULT_PARAMS = 'nominal_vessel'
+# The vessel file whose vectors the 4-DOF terms of vessel_physics are written for.
+PHYSICS_FAMILY_VESSEL = 'patrol_boat'
 ROLL_RATE, ROLL_ANGLE = 2, 4   # columns of z = [u, v, p, r, phi]
 
 
@@ -43,11 +45,15 @@ class FirstPrinciplesModel(PhysicalModel):
     """Named force terms, the mass matrix and RK4 sub-steps over one sample period."""
 
     def __init__(self, spec: VehicleSpec, kind: str, physics: Physics,
-                 params_source: str = DEFAULT_PARAMS, substeps: int = 4):
+                 params_source: str, substeps: int = 4):
         super().__init__(spec)
-        if spec.state_names != ('u', 'v', 'p', 'r', 'phi'):
-            raise ValueError(f'{kind}: the vessel terms need z = [u, v, p, r, phi], '
-                             f'got {spec.state_names}')
+        family = load_vessel(PHYSICS_FAMILY_VESSEL)
+        if (spec.state_names, spec.control_names) != (family.state_names,
+                                                      family.control_names):
+            raise ValueError(f'{kind}: the 4-DOF vessel terms take z = {family.state_names} '
+                             f'and c = {family.control_names}; vessel {spec.name!r} has '
+                             f'{spec.state_names} and {spec.control_names}: use a '
+                             f'regression physics (lin, hyd, qua)')
         if substeps < 1:
             raise ValueError(f'substeps must be >= 1, got {substeps}')
         self.kind, self.physics = kind, physics
@@ -106,9 +112,9 @@ def build_first_principles(kind: str, spec: VehicleSpec, params: str | None = No
     Min or Pro, or the physics of a physics file.
 
     Min and Pro take their parameters from ``vessel`` values, a YAML name/path
-    (``params``), or the nominal vessel. Kind 'physics' needs ``physics``: a physics
-    file's path, or its mapping (as ``describe`` stores it, with ``physics_source``
-    naming where it came from).
+    (``params``), or the hull parameters the vessel file names (``physics``). Kind
+    'physics' needs ``physics``: a physics file's path, or its mapping (as ``describe``
+    stores it, with ``physics_source`` naming where it came from).
     """
     if kind == PHYSICS_FILE_KIND:
         if physics is None:
@@ -126,7 +132,11 @@ def build_first_principles(kind: str, spec: VehicleSpec, params: str | None = No
     if kind not in TERM_SETS:
         raise ValueError(f'unknown first-principles model {kind!r}; use '
                          f'{sorted(TERM_SETS) + [PHYSICS_FILE_KIND]}')
-    source = params or DEFAULT_PARAMS
+    source = params or spec.physics
+    if source is None and not vessel:
+        raise ValueError(f'physical model {kind!r} needs hull parameters, and vessel '
+                         f'{spec.name!r} names none (key physics: in its vessel file); use a '
+                         f'regression physics (lin, hyd, qua) or give model.physical.params')
     values = params_from_dict(vessel, source) if vessel else load_named_vessel(source)
     return FirstPrinciplesModel(spec, kind, Physics(values, TERM_SETS[kind], source=source),
                                 source, substeps)

@@ -15,8 +15,11 @@ import yaml
 
 DEFAULTS: dict = {
     'name': 'unnamed',
-    'dataset': None,            # dataset directory (vessel_datasets format)
-    'vehicle': 'ship',
+    'dataset': None,            # dataset directory (vessel_datasets format); its
+                                # vessel description gives vectors, rate and the
+                                # window/horizon defaults below
+    'vessel': None,             # optional vessel file the dataset must match (refused
+                                # with one line when its vectors or rate differ)
     'model': {
         'kind': 'hybrid',       # qlag | lstm | hybrid
         'hidden': 64,
@@ -33,7 +36,7 @@ DEFAULTS: dict = {
     'training': {
         'seed': 0,
         'threads': 2,
-        'window': 60,           # initialization window (samples)
+        'window': None,         # initialization window (samples); None: the vessel's
         'sequence_length': 50,  # predicted samples per training sequence (BPTT length)
         'batch_size': 256,
         'grad_clip': 1.0,       # max global gradient norm
@@ -45,12 +48,14 @@ DEFAULTS: dict = {
              'stop_loss': None},
             {'kind': 'multistep', 'max_epochs': 60, 'patience': 8, 'lr': 0.0025},
         ],
-        'validation': {'horizon': 900, 'stride': 300},
+        'validation': {'horizon': None, 'stride': None},  # samples; None: the vessel's
+                                                           # horizon, stride horizon/3
         'max_bad_step_fraction': 0.5,  # more skipped (non-finite) steps: roll the epoch back
         'time_limit_minutes': None,    # stop (keeping the best model) past this budget
         'progress': True,
     },
-    'evaluation': {'horizon': 900, 'stride': 120, 'target': 'true',
+    # None: the vessel's horizon; stride horizon/7.5 (120 s of the paper's 900 s)
+    'evaluation': {'horizon': None, 'stride': None, 'target': 'true',
                    'thresholds': [0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5]},
 }
 
@@ -88,6 +93,38 @@ def resolve(cfg: dict) -> dict:
     if kind == 'lstm' and any(p['kind'] == 'teacher' for p in out['training']['phases']):
         raise ConfigError('the LSTM baseline has no physical model to teacher-force; '
                           'give it only multistep phases')
+    return out
+
+
+def evaluation_protocol(vessel, window: int | None = None, horizon: int | None = None,
+                        stride: int | None = None) -> tuple[int, int, int]:
+    """
+    Window, horizon and stride (samples) of test forecasts; None takes the vessel's.
+
+    Forecasts start every horizon/7.5 samples: 120 for the paper's 900 s at 1 Hz.
+    """
+    window = int(window if window is not None else vessel.window)
+    horizon = int(horizon if horizon is not None else vessel.horizon)
+    stride = int(stride if stride is not None else max(1, round(horizon / 7.5)))
+    if min(window, horizon, stride) < 1:
+        raise ConfigError(f'window, horizon and stride must be at least 1 sample, got '
+                          f'{window}, {horizon}, {stride}')
+    return window, horizon, stride
+
+
+def fill_from_vessel(cfg: dict, vessel) -> dict:
+    """
+    Window, horizons and strides the config leaves open, from the vessel's description.
+
+    Validation forecasts start every horizon/3 samples (300 for 900 s at 1 Hz), test
+    forecasts as ``evaluation_protocol`` says.
+    """
+    out = copy.deepcopy(cfg)
+    t, v, e = out['training'], out['training']['validation'], out['evaluation']
+    t['window'], e['horizon'], e['stride'] = evaluation_protocol(
+        vessel, t['window'], e['horizon'], e['stride'])
+    _, v['horizon'], _ = evaluation_protocol(vessel, t['window'], v['horizon'], 1)
+    v['stride'] = int(v['stride'] if v['stride'] is not None else max(1, v['horizon'] // 3))
     return out
 
 

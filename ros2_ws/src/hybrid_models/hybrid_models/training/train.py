@@ -25,19 +25,41 @@ from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import CompositeModel, RegressionModel
+from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.loop import BEST, LAST, LoopState, fit
 from hybrid_models.training.tasks import RecurrentTask
-from hybrid_models.vehicle import SHIP, VehicleSpec
+from hybrid_models.vehicle import VehicleSpec, load_vessel
+from vessel_datasets.format import read_dataset
 
-VEHICLES = {'ship': SHIP}
 MODEL_FILE = 'model.safetensors'
 
 
-def vehicle(name: str) -> VehicleSpec:
-    """Return the VehicleSpec a config names."""
-    if name not in VEHICLES:
-        raise ValueError(f'unknown vehicle {name!r}; known: {sorted(VEHICLES)}')
-    return VEHICLES[name]
+def dataset_vessel(cfg: dict) -> VehicleSpec:
+    """Return the vessel of the config's dataset, checked against the config's vessel file."""
+    vessel = read_dataset(cfg['dataset']).vessel
+    if cfg.get('vessel'):
+        load_vessel(cfg['vessel']).check_compatible(vessel, f'dataset {cfg["dataset"]}')
+    return vessel
+
+
+def check_windows(cfg: dict, spec: VehicleSpec) -> None:
+    """Refuse, before any training, a split that cannot give a single forecast window."""
+    t, e = cfg['training'], cfg['evaluation']
+    needs = {'train': t['window'] + t['sequence_length'],
+             'val': t['window'] + t['validation']['horizon'],
+             'test': t['window'] + e['horizon']}
+    runs = read_dataset(cfg['dataset']).manifest['runs']
+    for split, need in needs.items():
+        lengths = [r['n_samples'] for r in runs if r['split'] == split]
+        if split == 'test' and not lengths:
+            continue  # a dataset kept whole for training and validation
+        longest = max(lengths, default=0)
+        if longest < need:
+            raise ValueError(
+                f'no {split} run is long enough: the longest has {longest} samples '
+                f'({longest * spec.dt:.1f} s), a forecast window needs {need} '
+                f'({need * spec.dt:.1f} s at {spec.rate_hz:g} Hz); shorten the window or '
+                f'horizon (vessel file or training config) or use longer runs')
 
 
 def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
@@ -49,7 +71,10 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
     torch.manual_seed(tcfg['seed'])
     if cfg['dataset'] is None:
         raise ValueError('the config names no dataset (key "dataset" or --dataset)')
-    spec = vehicle(cfg['vehicle'])
+    spec = dataset_vessel(cfg)
+    cfg = fill_from_vessel(cfg, spec)
+    tcfg = cfg['training']
+    check_windows(cfg, spec)
     (out_dir / 'config.yaml').write_text(yaml.safe_dump(cfg, sort_keys=False))
     t_start = time.monotonic()
     train_runs = load_runs(cfg['dataset'], 'train', spec)

@@ -1,0 +1,48 @@
+"""
+The quantities a vessel description may name, with their units and frames.
+
+States are body-frame motion quantities (FRD, SI); the dataset also always carries the
+pose (heading and position) that trajectories are measured against. Actuators are of
+a few kinds whose model unit is fixed, so a recording's units are converted once, by
+the recording map, and never guessed later. Environment inputs expand into the model
+columns they feed.
+"""
+
+from __future__ import annotations
+
+# name -> (unit, meaning); a description lists its states in this order.
+STATES: dict[str, tuple[str, str]] = {
+    'u': ('m/s', 'surge velocity, body frame FRD'),
+    'v': ('m/s', 'sway velocity, body frame FRD (starboard +)'),
+    'p': ('rad/s', 'roll rate, body frame FRD (starboard down +)'),
+    'r': ('rad/s', 'yaw rate, body frame FRD (turn to starboard +)'),
+    'phi': ('rad', 'roll angle (starboard down +)'),
+}
+# Every vessel moves in the plane: trajectories integrate these.
+PLANAR_STATES = ('u', 'v', 'r')
+# Roll is modelled as a pair or not at all.
+ROLL_STATES = ('p', 'phi')
+
+POSE: dict[str, tuple[str, str]] = {
+    'psi': ('rad', 'heading from north towards east, unwrapped'),
+    'x': ('m', "position north of the run's start (NED)"),
+    'y': ('m', "position east of the run's start (NED)"),
+}
+
+# kind -> (model unit or None for any, meaning)
+ACTUATOR_KINDS: dict[str, tuple[str | None, str]] = {
+    'propeller': ('rad/s', 'shaft speed, signed: negative turns astern'),
+    'rudder': ('rad', 'rudder angle'),
+    'azimuth': ('rad', 'azimuth angle of a steerable thruster'),
+    'thruster': (None, 'thrust or thrust command of a fixed thruster'),
+    'other': (None, 'any other control input'),
+}
+
+# environment input -> model columns (name, unit, meaning)
+ENVIRONMENT: dict[str, tuple[tuple[str, str, str], ...]] = {
+    'wind': (
+        ('wind_speed', 'm/s', 'measured true wind speed'),
+        ('wind_dir_cos', '1', 'cos of the angle the wind comes from, rel. to the bow'),
+        ('wind_dir_sin', '1', 'sin of that angle (wind from starboard +)'),
+    ),
+}
