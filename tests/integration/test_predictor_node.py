@@ -28,19 +28,20 @@ class Inputs:
 
     def window_until(self, t_end, window):
         """Return the window a predictor with these inputs assembles at t_end."""
-        from hybrid_predictor.input_window import InputWindow
+        from hybrid_predictor.input_window import InputWindow, channel_reader
+        from vessel_datasets.topic_map import topic_map_for
+        from vessel_description import load_vessel
         from vessel_ros_bridge import messages as m
 
-        w = InputWindow(window, 1.0, max_gap=2.5, max_age=5.0)
-        for msg in self.odom:
-            t = m.seconds_from_stamp(msg.header.stamp)
-            if t <= t_end:
-                w.push('state', t, m.state_from_odometry(msg))
-        for msg in self.actuators:
-            w.push('actuators', m.seconds_from_stamp(msg.header.stamp),
-                   m.actuators_from_joint_state(msg))
-        for msg in self.wind:
-            w.push('wind', m.seconds_from_stamp(msg.header.stamp), m.measurement_from_wind(msg))
+        topic_map = topic_map_for(load_vessel('patrol_boat'))
+        w = InputWindow(topic_map, window, 1.0, max_gap=2.5, max_age=5.0)
+        for topic, msgs in (('/vessel/odom', self.odom), ('/vessel/actuators', self.actuators),
+                            ('/vessel/wind', self.wind)):
+            read = channel_reader(topic_map, topic)
+            for msg in msgs:
+                t = m.seconds_from_stamp(msg.header.stamp)
+                if topic != '/vessel/odom' or t <= t_end:
+                    w.push(topic, t, read(msg))
         return w.assemble(now=t_end)
 
 
@@ -215,7 +216,7 @@ def test_an_incomplete_window_gives_a_clear_status_and_no_forecast(launcher, ros
         return status.level == b'\x02' and 'no forecast' in status.message
     assert spin_until(ros_node, explained, 15), diagnostics[-1].status[0].message
     message = diagnostics[-1].status[0].message
-    assert 'no actuators received' in message and 'no wind received' in message
+    assert 'no /vessel/actuators received' in message and 'no /vessel/wind received' in message
     assert not forecasts
 
 

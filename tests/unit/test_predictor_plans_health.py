@@ -61,12 +61,12 @@ def test_hold_latest_repeats_the_last_controls():
 
 
 def test_track_is_the_metric_track_rotated_and_shifted_to_the_pose():
-    def positions(z):   # straight ahead at u, the metric's convention (heading 0 = north)
-        return np.stack([np.cumsum(z[..., 0]), np.zeros(z.shape[:-1])], axis=-1)
+    from vessel_description import load_vessel
 
     states = np.zeros((H, 5))
-    states[:, 0] = 2.0
-    north, east, heading = track(states, (100.0, 50.0, math.pi / 2), 1.0, positions)
+    states[:, 0] = 2.0   # straight ahead at u (the metric's heading 0 is north)
+    north, east, heading = track(states, (100.0, 50.0, math.pi / 2),
+                                 load_vessel('patrol_boat'))
     np.testing.assert_allclose(north, 100.0, atol=1e-12)      # heading east
     np.testing.assert_allclose(east, 50.0 + 2.0 * np.arange(1, H + 1))
     np.testing.assert_allclose(heading, math.pi / 2)

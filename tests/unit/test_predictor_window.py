@@ -5,29 +5,52 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_predictor.input_window import InputWindow
+from hybrid_predictor.input_window import InputWindow, channel_reader
+from vessel_datasets.topic_map import parse_topic_map, topic_map_for
+from vessel_description import load_vessel
 
 W, DT = 60, 1.0
+BOAT = load_vessel('patrol_boat')
+# The patrol boat's vectors from scalar fields in the model's own frames (NED/FRD), so
+# channels equal the states: the window must give back exactly what went in.
+SCALAR_MAP = parse_topic_map({
+    'body_velocity': {'frame': 'frd', 'surge': {'topic': '/state', 'field': 'u'},
+                      'sway': {'topic': '/state', 'field': 'v'},
+                      'roll_rate': {'topic': '/state', 'field': 'p'},
+                      'yaw_rate': {'topic': '/state', 'field': 'r'}},
+    'attitude': {'frame': 'ned_frd', 'heading': {'topic': '/state', 'field': 'psi'},
+                 'roll': {'topic': '/state', 'field': 'phi'}},
+    'position': {'frame': 'ned', 'x': {'topic': '/state', 'field': 'x'},
+                 'y': {'topic': '/state', 'field': 'y'}},
+    'actuators': {name: {'topic': '/act', 'field': name} for name in BOAT.actuator_names},
+    'wind': {'frame': 'frd', 'speed': {'topic': '/wind', 'field': 'speed'},
+             'from_angle': {'topic': '/wind', 'field': 'angle'}},
+}, BOAT)
+CHANNEL = {'u': 'surge', 'v': 'sway', 'p': 'roll_rate', 'r': 'yaw_rate', 'phi': 'roll',
+           'psi': 'heading', 'x': 'pos_x', 'y': 'pos_y'}
 
 
 def state_at(t):
     # Smooth, known signals so interpolated values can be checked exactly.
-    return {'u': 5.0 + 0.01 * t, 'v': 0.1, 'p': 0.0, 'r': 0.01, 'phi': 0.02 * math.sin(t),
-            'psi': 0.01 * t, 'x': 5.0 * t, 'y': 0.0}
+    values = {'u': 5.0 + 0.01 * t, 'v': 0.1, 'p': 0.0, 'r': 0.01, 'phi': 0.02 * math.sin(t),
+              'psi': 0.01 * t, 'x': 5.0 * t, 'y': 0.0}
+    return {CHANNEL[k]: v for k, v in values.items()}
+
+
+def actuators(**values):
+    return {f'actuator.{k}': v for k, v in values.items()}
 
 
 def fill(window, t0, t1, state_rate=1.0, control_rate=1.0):
     for t in np.arange(t0, t1 + 1e-9, 1.0 / state_rate):
-        window.push('state', float(t), state_at(float(t)))
+        window.push('/state', float(t), state_at(float(t)))
     for t in np.arange(t0, t1 + 1e-9, 1.0 / control_rate):
-        window.push('actuators', float(t), {'n': 90.0 + t, 'delta_port': 0.01,
-                                            'delta_stbd': 0.02})
-        window.push('wind', float(t), {'wind_speed': 3.0, 'wind_dir_cos': 1.0,
-                                       'wind_dir_sin': 0.0})
+        window.push('/act', float(t), actuators(n=90.0 + t, delta_port=0.01, delta_stbd=0.02))
+        window.push('/wind', float(t), {'wind_speed': 3.0, 'wind_from_angle': 0.0})
 
 
 def make():
-    return InputWindow(window=W, dt=DT, max_gap=2.5, max_age=5.0)
+    return InputWindow(SCALAR_MAP, window=W, dt=DT, max_gap=2.5, max_age=5.0)
 
 
 def test_window_on_the_model_grid_from_10_hz_states_and_2_hz_controls():
@@ -48,15 +71,15 @@ def test_heading_is_unwrapped_across_the_pi_boundary():
     for k in range(70):
         t = float(k)
         psi = math.remainder(math.pi - 0.5 + 0.02 * k, 2 * math.pi)  # crosses +pi
-        window.push('state', t, dict(state_at(t), psi=psi))
-        window.push('actuators', t, {'n': 1.0, 'delta_port': 0.0, 'delta_stbd': 0.0})
-        window.push('wind', t, {'wind_speed': 1.0, 'wind_dir_cos': 1.0, 'wind_dir_sin': 0.0})
+        window.push('/state', t, dict(state_at(t), heading=psi))
+        window.push('/act', t, actuators(n=1.0, delta_port=0.0, delta_stbd=0.0))
+        window.push('/wind', t, {'wind_speed': 1.0, 'wind_from_angle': 0.0})
     result = window.assemble(now=69.0)
     assert result.pose[2] == pytest.approx(math.pi - 0.5 + 0.02 * 69)
 
 
 @pytest.mark.parametrize('t, values, counter', [
-    (50.0, {'u': float('nan')}, 'non_finite'),
+    (50.0, {'surge': float('nan')}, 'non_finite'),
     (float('inf'), {}, 'non_finite'),
     (100.0, {}, 'duplicate'),
     (42.0, {}, 'out_of_order'),
@@ -65,9 +88,9 @@ def test_bad_samples_are_rejected_counted_and_never_used(t, values, counter):
     window = make()
     fill(window, 0.0, 100.0)
     before = window.assemble(now=100.0)
-    reason = window.push('state', t, dict(state_at(100.0), **values))
+    reason = window.push('/state', t, dict(state_at(100.0), **values))
     assert reason
-    counts = window.streams['state'].counts
+    counts = window.streams['/state'].counts
     assert getattr(counts, counter) == 1 and counts.rejected == 1
     after = window.assemble(now=100.0)
     np.testing.assert_array_equal(before.states, after.states)
@@ -76,10 +99,10 @@ def test_bad_samples_are_rejected_counted_and_never_used(t, values, counter):
 def test_partial_actuator_samples_complete_from_the_last_one():
     window = make()
     fill(window, 0.0, 100.0)
-    assert window.push('actuators', 100.5, {'delta_port': 0.3}) is None
-    assert window.streams['actuators'].counts.incomplete == 0
-    first = InputWindow(W, DT, 2.5, 5.0)
-    assert 'lacks' in first.push('actuators', 0.0, {'delta_port': 0.3})
+    assert window.push('/act', 100.5, actuators(delta_port=0.3)) is None
+    assert window.streams['/act'].counts.incomplete == 0
+    first = make()
+    assert 'lacks' in first.push('/act', 0.0, actuators(delta_port=0.3))
 
 
 def test_too_short_history_is_incomplete_with_the_fill_fraction():
@@ -95,18 +118,18 @@ def test_a_gap_in_the_states_makes_the_window_incomplete():
     window = make()
     fill(window, 0.0, 100.0)
     for t in (104.0, 105.0):     # 4 s of silence, more than max_gap
-        window.push('state', t, state_at(t))
+        window.push('/state', t, state_at(t))
     result = window.assemble(now=105.0)
-    assert not result.ready and 'state gap of 4.0 s' in result.reason
+    assert not result.ready and '/state gap of 4.0 s' in result.reason
 
 
 def test_silent_controls_make_the_window_incomplete():
     window = make()
     fill(window, 0.0, 100.0)
     for t in range(101, 106):
-        window.push('state', float(t), state_at(float(t)))
+        window.push('/state', float(t), state_at(float(t)))
     result = window.assemble(now=105.0)
-    assert not result.ready and 'actuators silent' in result.reason
+    assert not result.ready and '/act silent' in result.reason
 
 
 def test_old_data_is_stale():
@@ -119,5 +142,43 @@ def test_old_data_is_stale():
 def test_buffers_keep_only_what_a_window_needs():
     window = make()
     fill(window, 0.0, 2000.0, state_rate=10.0)
-    assert len(window.streams['state']._times) < 10 * (W + 5)
+    assert len(window.streams['/state']._times) < 10 * (W + 5)
     assert window.assemble(now=2000.0).ready
+
+
+def test_the_window_equals_offline_conversion_of_the_same_messages(tmp_path):
+    """One preprocessing core: the online window matches the converter's dataset."""
+    from vessel_datasets import synthetic
+    from vessel_datasets.convert import bag_to_runs
+
+    traj = synthetic.demo_trajectory(400, rate_hz=5.0)
+    (table,) = bag_to_runs(synthetic.write_bag(tmp_path / 'bag', traj),
+                           topic_map_for(BOAT)).values()
+    topic_map = topic_map_for(BOAT)
+    window = InputWindow(topic_map, window=W, dt=DT, max_gap=2.5, max_age=5.0)
+    readers = {t: channel_reader(topic_map, t) for t in topic_map.topics}
+    # The dataset's grid lies on whole seconds: end the online window on one too.
+    end_ns = traj.t_ns[-1] // 10**9 * 10**9
+    for topic, ns, msg in synthetic.sim_messages(traj):
+        if ns <= end_ns:
+            window.push(topic, ns * 1e-9, readers[topic](msg))
+    result = window.assemble(now=end_ns * 1e-9)
+    assert result.ready
+    tail = table.iloc[-W:]
+    np.testing.assert_allclose(result.states, tail[list(BOAT.state_names)], atol=1e-9)
+    np.testing.assert_allclose(result.controls, tail[list(BOAT.control_names)], atol=1e-9)
+
+
+def test_a_message_with_none_of_the_mapped_joints_is_malformed():
+    from rosbags.typesys import Stores, get_typestore
+    T = get_typestore(Stores.ROS2_JAZZY).types
+    read = channel_reader(topic_map_for(BOAT), '/vessel/actuators')
+    header = T['std_msgs/msg/Header'](stamp=T['builtin_interfaces/msg/Time'](sec=0, nanosec=0),
+                                      frame_id='')
+    partial = T['sensor_msgs/msg/JointState'](header=header, name=['rudder_port'],
+                                              position=[0.2], velocity=[], effort=[])
+    assert read(partial) == {'actuator.delta_port': 0.2}
+    foreign = T['sensor_msgs/msg/JointState'](header=header, name=['thruster'],
+                                              position=[1.0], velocity=[], effort=[])
+    with pytest.raises(ValueError, match='carries none of the mapped fields'):
+        read(foreign)

@@ -1,15 +1,19 @@
 """
 Assemble the model's initialization window from asynchronous inputs (no ROS).
 
-Three streams arrive at their own rates: the vessel state (from odometry), the
-actuators and the wind. Each sample is checked on arrival: non-finite values,
+Every topic of the vessel's topic map (vessel_description, ``recordings.topics``) is a
+stream of named channels read from its messages, in the messages' own frames and
+units after the map's scale. Each sample is checked on arrival: non-finite values,
 duplicates (same stamp as the last) and out-of-order stamps are rejected and counted,
 so they never reach the model. On request the window is built on the model's grid,
-``window`` samples ``dt`` apart ending at the newest state sample: states are
-interpolated linearly (heading unwrapped), actuators and wind are held (zero-order
-hold), as in the datasets the model was trained on. A window is only handed out when
-every grid point is covered without gaps longer than ``max_gap`` and the newest state
-is at most ``max_age`` old; otherwise the result says why.
+``window`` samples ``dt`` apart ending at the newest sample of the state topic (the
+one giving surge): the streams go through the same preprocessing as offline
+conversion -- ``vessel_datasets.quantities.derive`` (orientation to heading and roll,
+heading unwrapped), ``vessel_datasets.resample.sample`` (states linear, actuators and
+wind held) and ``to_columns`` (frames, units, the vessel's vector order) -- so the
+model sees what it was trained on. A window is only handed out when every grid point
+is covered without gaps longer than ``max_gap`` and the newest state is at most
+``max_age`` old; otherwise the result says why.
 
 Times are in seconds on the clock of the message stamps.
 """
@@ -22,16 +26,41 @@ import math
 
 import numpy as np
 
-STATE_CHANNELS = ('u', 'v', 'p', 'r', 'phi', 'psi', 'x', 'y')
-ACTUATOR_CHANNELS = ('n', 'delta_port', 'delta_stbd')
-WIND_CHANNELS = ('wind_speed', 'wind_dir_cos', 'wind_dir_sin')
-MODEL_STATE = ('u', 'v', 'p', 'r', 'phi')
-MODEL_CONTROL = ACTUATOR_CHANNELS + WIND_CHANNELS
+from vessel_datasets.extract import TopicSamples
+from vessel_datasets.fields import compile_getter
+from vessel_datasets.quantities import channel_methods, derive, to_columns
+from vessel_datasets.resample import sample
+from vessel_datasets.topic_map import TopicMap
+
+POSE = ('x', 'y', 'psi')
+STATE_ENTRY = 'surge'  # its topic's newest sample ends the window
 
 
-def wrap_angle(angle: float) -> float:
-    """Wrap an angle to (-pi, pi] (rad)."""
-    return math.pi - (math.pi - angle) % (2.0 * math.pi)
+def channel_reader(topic_map: TopicMap, topic: str):
+    """
+    Return a function reading a topic's channel values from one of its messages.
+
+    It takes any message object with the mapped fields (rclpy or rosbags) and returns
+    ``{channel: scale * field + offset}``. An element a message does not carry (a joint
+    it does not name) is left out, so the stream completes it from its last sample; a
+    message carrying none of the topic's channels raises ValueError.
+    """
+    leaves = [leaf for leaf in topic_map.leaves() if leaf.topic == topic]
+    reads = [(leaf.channel, compile_getter(leaf.path, absent=None), leaf.scale, leaf.offset)
+             for leaf in leaves]
+    fields = ', '.join(leaf.path for leaf in leaves)
+
+    def read(msg) -> dict[str, float]:
+        out = {}
+        for channel, get, scale, offset in reads:
+            value = get(msg)
+            if value is not None:
+                out[channel] = scale * float(value) + offset
+        if not out:
+            raise ValueError(f'carries none of the mapped fields ({fields})')
+        return out
+
+    return read
 
 
 @dataclass
@@ -52,13 +81,12 @@ class StreamCounts:
 
 @dataclass
 class Stream:
-    """Time-ordered samples of named channels, pruned to the span a window needs."""
+    """Time-ordered samples of one topic's channels, pruned to the span a window needs."""
 
     name: str
     channels: tuple[str, ...]
-    hold: bool
+    hold: bool            # every channel is held (actuators, wind): no interpolation
     keep_s: float
-    unwrap: str | None = None
     counts: StreamCounts = field(default_factory=StreamCounts)
     _times: deque = field(default_factory=deque)
     _values: deque = field(default_factory=deque)
@@ -87,10 +115,6 @@ class Stream:
                 return f'{self.name}: duplicate stamp t={t}'
             self.counts.out_of_order += 1
             return f'{self.name}: stamp t={t} older than the last ({self._times[-1]})'
-        if self.unwrap is not None and self._values:
-            i = self.channels.index(self.unwrap)
-            previous = self._values[-1][i]
-            row[i] = previous + wrap_angle(row[i] - previous)
         self._times.append(t)
         self._values.append(row)
         self.counts.accepted += 1
@@ -104,47 +128,47 @@ class Stream:
         self._times.clear()
         self._values.clear()
 
-    def sample(self, grid: np.ndarray, max_gap: float) -> tuple[np.ndarray | None, str, int]:
-        """
-        Return (values on ``grid`` (len, channels), reason, covered points).
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the buffered times (s) and values (n, channels)."""
+        times = np.fromiter(self._times, float, len(self._times))
+        return times, np.asarray(self._values, dtype=float).reshape(len(times), -1)
 
-        Values are None when some grid point is not covered; ``reason`` then says why
-        and ``covered`` counts the points that were.
+    def coverage(self, grid: np.ndarray, max_gap: float) -> tuple[str, int]:
+        """
+        Return (why ``grid`` is not covered or '', covered points).
+
+        A held stream covers a grid point with a sample at most ``max_gap`` before it;
+        an interpolated one with samples on both sides at most ``max_gap`` apart.
         """
         if not self._times:
-            return None, f'no {self.name} received', 0
-        times = np.fromiter(self._times, float, len(self._times))
-        values = np.asarray(self._values, dtype=float)
+            return f'no {self.name} received', 0
+        times, _ = self.arrays()
         if self.hold:
             index = np.searchsorted(times, grid, side='right') - 1
             ok = index >= 0
             age = np.where(ok, grid - times[np.maximum(index, 0)], np.inf)
             ok &= age <= max_gap
             if ok.all():
-                return values[index], '', len(grid)
+                return '', len(grid)
             worst = float(np.max(age))
             reason = (f'{self.name} silent for {worst:.1f} s (max gap {max_gap:g} s)'
                       if math.isfinite(worst) else f'{self.name} does not reach back '
                       f'{grid[-1] - grid[0]:.0f} s yet')
-            return None, reason, int(ok.sum())
+            return reason, int(ok.sum())
         before = np.searchsorted(times, grid, side='right') - 1   # last sample <= g
         after = np.searchsorted(times, grid, side='left')         # first sample >= g
         inside = (before >= 0) & (after < len(times))
         gap = np.full(len(grid), np.inf)
         gap[inside] = times[after[inside]] - times[before[inside]]
         ok = gap <= max_gap
-        if not ok.all():
-            if not inside[0]:
-                reason = (f'{self.name} does not reach back {grid[-1] - grid[0]:.0f} s yet '
-                          f'(oldest sample {grid[-1] - times[0]:.1f} s before the newest)')
-            else:
-                reason = (f'{self.name} gap of {float(np.max(gap[inside])):.1f} s '
-                          f'(max gap {max_gap:g} s)')
-            return None, reason, int(ok.sum())
-        out = np.empty((len(grid), len(self.channels)))
-        for j in range(len(self.channels)):
-            out[:, j] = np.interp(grid, times, values[:, j])
-        return out, '', len(grid)
+        if ok.all():
+            return '', len(grid)
+        if not inside[0]:
+            return (f'{self.name} does not reach back {grid[-1] - grid[0]:.0f} s yet '
+                    f'(oldest sample {grid[-1] - times[0]:.1f} s before the newest)',
+                    int(ok.sum()))
+        return (f'{self.name} gap of {float(np.max(gap[inside])):.1f} s (max gap '
+                f'{max_gap:g} s)', int(ok.sum()))
 
 
 @dataclass(frozen=True)
@@ -157,28 +181,34 @@ class Window:
     fill: float            # fraction of grid points every stream covers
     t_end: float | None    # stamp of the newest window sample (s)
     age: float | None      # now - t_end (s)
-    states: np.ndarray | None = None     # (window, 5) MODEL_STATE
-    controls: np.ndarray | None = None   # (window, 6) MODEL_CONTROL
+    states: np.ndarray | None = None     # (window, n_state) in the vessel's state order
+    controls: np.ndarray | None = None   # (window, n_control) in its control order
     pose: tuple[float, float, float] | None = None  # x, y (m, NED), psi (rad) at t_end
 
 
 class InputWindow:
-    """Collects the three input streams and builds the model's window on demand."""
+    """Collects one stream per topic of a vessel's topic map; builds windows on demand."""
 
-    def __init__(self, window: int, dt: float, max_gap: float, max_age: float):
+    def __init__(self, topic_map: TopicMap, window: int, dt: float, max_gap: float,
+                 max_age: float):
         if window < 2 or dt <= 0 or max_gap <= 0 or max_age <= 0:
             raise ValueError(f'need window >= 2 and positive dt, max_gap, max_age; got '
                              f'{window}, {dt}, {max_gap}, {max_age}')
+        self.topic_map, self.vessel = topic_map, topic_map.vessel
         self.window, self.dt, self.max_gap, self.max_age = window, dt, max_gap, max_age
         keep = (window + 1) * dt + max_gap
+        self.methods = channel_methods(topic_map)
+        leaves: dict[str, list[str]] = {}
+        for leaf in topic_map.leaves():
+            leaves.setdefault(leaf.topic, []).append(leaf.channel)
         self.streams = {
-            'state': Stream('state', STATE_CHANNELS, hold=False, keep_s=keep, unwrap='psi'),
-            'actuators': Stream('actuators', ACTUATOR_CHANNELS, hold=True, keep_s=keep),
-            'wind': Stream('wind', WIND_CHANNELS, hold=True, keep_s=keep),
-        }
+            topic: Stream(topic, tuple(channels),
+                          all(self.methods[c] == 'hold' for c in channels), keep)
+            for topic, channels in leaves.items()}
+        self.state_topic = next(e.topic for e in topic_map.entries if e.name == STATE_ENTRY)
 
     def push(self, stream: str, t: float, values: dict[str, float]) -> str | None:
-        """Offer a sample to ``stream`` ('state', 'actuators', 'wind'); None if accepted."""
+        """Offer a sample of channel values to a topic's stream; None if accepted."""
         return self.streams[stream].push(t, values)
 
     def clear(self) -> None:
@@ -188,15 +218,15 @@ class InputWindow:
 
     def assemble(self, now: float) -> Window:
         """Build the window ending at the newest state sample, or say why it cannot."""
-        t_end = self.streams['state'].latest_time
+        t_end = self.streams[self.state_topic].latest_time
         if t_end is None:
-            return Window(False, 'incomplete', 'no state received', 0.0, None, None)
+            return Window(False, 'incomplete', f'no {self.state_topic} received', 0.0, None,
+                          None)
         age = now - t_end
         grid = t_end - self.dt * np.arange(self.window - 1, -1, -1, dtype=float)
-        parts, reasons, covered = {}, [], []
-        for name, stream in self.streams.items():
-            values, reason, count = stream.sample(grid, self.max_gap)
-            parts[name] = values
+        reasons, covered = [], []
+        for stream in self.streams.values():
+            reason, count = stream.coverage(grid, self.max_gap)
             covered.append(count)
             if reason:
                 reasons.append(reason)
@@ -206,10 +236,21 @@ class InputWindow:
         if age > self.max_age:
             return Window(False, 'stale', f'newest state is {age:.1f} s old (max '
                           f'{self.max_age:g} s)', fill, t_end, age)
-        state = parts['state']
-        states = state[:, [STATE_CHANNELS.index(c) for c in MODEL_STATE]]
-        controls = np.concatenate([parts['actuators'], parts['wind']], axis=1)
-        last = state[-1]
-        pose = (float(last[STATE_CHANNELS.index('x')]), float(last[STATE_CHANNELS.index('y')]),
-                float(last[STATE_CHANNELS.index('psi')]))
+        columns = self._columns(grid)
+        states = np.column_stack([columns[c] for c in self.vessel.state_names])
+        controls = np.column_stack([columns[c] for c in self.vessel.control_names])
+        pose = tuple(float(columns[c][-1]) for c in POSE)
         return Window(True, 'ok', '', fill, t_end, age, states, controls, pose)
+
+    def _columns(self, grid: np.ndarray) -> dict[str, np.ndarray]:
+        """Return the vessel's columns on ``grid``, through the offline preprocessing."""
+        grid_ns = np.round(grid * 1e9).astype(np.int64)
+        channels: dict[str, np.ndarray] = {}
+        for topic, stream in self.streams.items():
+            times, values = stream.arrays()
+            raw = TopicSamples(topic, '', stream.channels, np.round(times * 1e9).astype(
+                np.int64), values)
+            s = derive(raw, self.topic_map)
+            on_grid = sample(s.t_ns, s.values, grid_ns, [self.methods[c] for c in s.channels])
+            channels.update({c: on_grid[:, i] for i, c in enumerate(s.channels)})
+        return to_columns(channels, self.topic_map, relative=False)

@@ -1,8 +1,10 @@
 """
 The predictor node: a thin ROS 2 adapter around ``hybrid_models.engine``.
 
-Inputs (docs/conventions.md): ``/vessel/odom``, ``/vessel/actuators``, ``/vessel/wind``,
-optionally ``/vessel/control_plan`` (hybrid_predictor_interfaces/ControlPlan).
+Inputs: the topics of the vessel's topic map (vessel file, ``recordings.topics``; the
+patrol boat's are ``/vessel/odom``, ``/vessel/actuators``, ``/vessel/wind``), with the
+message types it names, and optionally ``/vessel/control_plan``
+(hybrid_predictor_interfaces/ControlPlan).
 Outputs: ``/vessel/forecast`` (Forecast: hybrid forecast, its physical part, the
 LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path) and
 ``/diagnostics``. Service ``~/predict`` (Predict): forecasts for candidate control
@@ -13,25 +15,24 @@ ROS-free modules of this package; the numerics in ``hybrid_models``.
 from __future__ import annotations
 
 from array import array
+from functools import partial
+import importlib
 import math
 from pathlib import Path
 import sys
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped, Vector3Stamped
-from nav_msgs.msg import Odometry
+from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from sensor_msgs.msg import JointState
 
 from hybrid_models.checkpoint import CheckpointError
 from hybrid_models.engine import ForecastEngine
-from hybrid_models.metrics import positions
 from hybrid_predictor.health import Health
-from hybrid_predictor.input_window import InputWindow
+from hybrid_predictor.input_window import InputWindow, channel_reader
 from hybrid_predictor.plans import (
     ActuatorLimits,
     PlanError,
@@ -42,8 +43,9 @@ from hybrid_predictor.plans import (
 )
 from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
 from hybrid_predictor_interfaces.srv import Predict
+from vessel_datasets.topic_map import TopicMapError, topic_map_for
+from vessel_description import VesselError, load_vessel
 from vessel_physics import frames
-from vessel_physics.params import load_named_vessel
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.lifecycle import run_node
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
@@ -54,6 +56,9 @@ PATH_TOPIC = '/vessel/forecast/path'
 PLAN_TOPIC = '/vessel/control_plan'
 DEFAULT_MODEL = ('models', 'default', 'model.safetensors')
 PLAN_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd', 'wind_speed', 'wind_direction')
+# The controls a ControlPlan message gives (its fields are the patrol boat's).
+PLAN_CONTROLS = ('n', 'delta_port', 'delta_stbd', 'wind_speed', 'wind_dir_cos',
+                 'wind_dir_sin')
 
 
 def default_model_path() -> Path:
@@ -79,12 +84,14 @@ class PredictorNode(Node):
             self.engine = ForecastEngine(model, model_id=self.engine.model_id,
                                          config=self.engine.config)
         self.spec = model.spec
-        self.horizon = p['horizon']
-        vessel = getattr(getattr(model.physical, 'first_principles', model.physical),
-                         'params', None) or load_named_vessel('nominal_vessel')
-        self.limits = ActuatorLimits(vessel.shaft_max_speed, vessel.rudder_max_angle)
+        if p['vessel']:
+            load_vessel(p['vessel']).check_compatible(self.spec, f'model {path}')
+        self.topic_map = topic_map_for(self.spec)
+        self.horizon = p['horizon'] or self.spec.horizon
+        self.limits = plan_limits(self.spec)
         window = self.engine.window
-        self.window = InputWindow(window, self.spec.dt, p['max_gap'], p['max_age'])
+        self.window = InputWindow(self.topic_map, window, self.spec.dt, p['max_gap'],
+                                  p['max_age'])
         self.health = Health()
         self.rejected = {'malformed': 0}
         self.last_forecast_t = -math.inf
@@ -103,10 +110,10 @@ class PredictorNode(Node):
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         depth = p['input_queue_depth']
-        self.create_subscription(Odometry, messages.ODOM_TOPIC, self._on_odom, depth)
-        self.create_subscription(JointState, messages.ACTUATORS_TOPIC, self._on_actuators,
-                                 depth)
-        self.create_subscription(Vector3Stamped, messages.WIND_TOPIC, self._on_wind, depth)
+        self.readers = {}
+        for topic, msg_class in input_types(self.topic_map).items():
+            self.readers[topic] = channel_reader(self.topic_map, topic)
+            self.create_subscription(msg_class, topic, partial(self._on_input, topic), depth)
         self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10)
         self.create_service(Predict, '~/predict', self._on_predict)
         self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
@@ -119,11 +126,24 @@ class PredictorNode(Node):
             self.get_logger().warning(f'rejected input: {reason}', throttle_duration_sec=5.0)
         return reason is None
 
-    def _on_odom(self, msg: Odometry, info=None) -> None:
-        state = messages.state_from_odometry(msg)
-        if not self._push('state', msg.header.stamp, state):
+    def _on_input(self, topic: str, msg, info=None) -> None:
+        try:
+            values = self.readers[topic](msg)
+        except (AttributeError, IndexError, TypeError, ValueError) as exc:
+            self.rejected['malformed'] += 1
+            self.get_logger().warning(f'rejected {topic}: {exc}', throttle_duration_sec=5.0)
             return
-        t = messages.seconds_from_stamp(msg.header.stamp)
+        # Types without a header are timed on arrival, as offline conversion does.
+        stamp = msg.header.stamp if hasattr(msg, 'header') else \
+            self.get_clock().now().to_msg()
+        if not self._push(topic, stamp, values):
+            return
+        if topic == self.window.state_topic:
+            self._on_state(messages.seconds_from_stamp(stamp), info)
+        else:
+            self._forecast_when_synced()
+
+    def _on_state(self, t: float, info) -> None:
         if t - self.last_forecast_t < self.p['forecast_period']:
             return
         received_ns = (info or {}).get('received_timestamp') or time.time_ns()
@@ -136,26 +156,12 @@ class PredictorNode(Node):
             return
         self._forecast_when_synced()
 
-    def _on_actuators(self, msg: JointState) -> None:
-        try:
-            values = messages.actuators_from_joint_state(msg)
-        except ValueError as exc:
-            self.rejected['malformed'] += 1
-            self.get_logger().warning(f'rejected actuators: {exc}', throttle_duration_sec=5.0)
-            return
-        if self._push('actuators', msg.header.stamp, values):
-            self._forecast_when_synced()
-
-    def _on_wind(self, msg: Vector3Stamped) -> None:
-        if self._push('wind', msg.header.stamp, messages.measurement_from_wind(msg)):
-            self._forecast_when_synced()
-
     def _forecast_when_synced(self) -> None:
         # A sample's actuators and wind may arrive just after its state: wait for them
         # (up to sync_timeout) so the forecast never holds the previous second's controls.
         if self.pending_ns is None:
             return
-        t_state = self.window.streams['state'].latest_time
+        t_state = self.window.streams[self.window.state_topic].latest_time
         if all((stream.latest_time or -math.inf) >= t_state
                for stream in self.window.streams.values()):
             self._forecast_pending()
@@ -189,7 +195,10 @@ class PredictorNode(Node):
 
     def _future_controls(self, result) -> np.ndarray:
         plan = self.latest_plan
-        if plan is not None:
+        if plan is not None and self.limits is None:
+            self.get_logger().warning(f'ignoring {PLAN_TOPIC}: {self._no_plans()}',
+                                      throttle_duration_sec=5.0)
+        elif plan is not None:
             age = result.t_end - messages.seconds_from_stamp(plan.header.stamp)
             if 0.0 <= age <= self.p['plan_timeout']:
                 shift = int(round(age / self.spec.dt))
@@ -218,7 +227,7 @@ class PredictorNode(Node):
         self.path_pub.publish(self._path_message(msg))
 
     def _forecast_message(self, result, hybrid: np.ndarray, physics: np.ndarray) -> Forecast:
-        north, east, psi = track(hybrid, result.pose, self.spec.dt, self._positions)
+        north, east, psi = track(hybrid, result.pose, self.spec)
         x_enu, y_enu, _ = frames.position_ned_to_enu(north, east)
         msg = Forecast()
         msg.header.stamp = messages.stamp_from_seconds(result.t_end)
@@ -227,6 +236,8 @@ class PredictorNode(Node):
         msg.horizon = self.horizon
         msg.state_names = list(self.spec.state_names)
         msg.state_units = list(self.spec.state_units)
+        msg.vessel = self.spec.name
+        msg.control_names = list(self.spec.control_names)
         # Typed arrays: rclpy checks a list element by element, an array('d') at once.
         msg.hybrid = array('d', hybrid.ravel())
         msg.physics = array('d', physics.ravel())
@@ -235,9 +246,6 @@ class PredictorNode(Node):
         msg.heading = array('d', frames.heading_ned_to_enu(psi))
         msg.model_id = self.engine.model_id
         return msg
-
-    def _positions(self, states: np.ndarray) -> np.ndarray:
-        return positions(states, self.spec)
 
     def _path_message(self, forecast: Forecast) -> PathMsg:
         path = PathMsg()
@@ -256,11 +264,20 @@ class PredictorNode(Node):
             path.poses.append(pose)
         return path
 
+    def _no_plans(self) -> str:
+        return (f'control plans give {list(PLAN_CONTROLS)}; vessel {self.spec.name!r} has '
+                f'controls {list(self.spec.control_names)}, so only forecasts that hold the '
+                f'latest controls are made')
+
     def _on_predict(self, request, response):
         plans = request.plans
         if not 1 <= len(plans) <= self.p['max_plans']:
             response.success = False
             response.message = f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}'
+            return response
+        if self.limits is None:
+            response.success = False
+            response.message = self._no_plans()
             return response
         result = self._window()
         if not result.ready:
@@ -303,10 +320,36 @@ class PredictorNode(Node):
         self.diag_pub.publish(diag)
 
 
+def input_types(topic_map) -> dict:
+    """Message class of every input topic, from the ``type`` its map entries name."""
+    out = {}
+    for topic in topic_map.topics:
+        names = {e.msgtype for e in topic_map.entries if e.topic == topic and e.msgtype}
+        if len(names) != 1:
+            raise TopicMapError(f'vessel {topic_map.vessel.name!r}: topic {topic} needs one '
+                                f'type (type: pkg/msg/Name on one of its entries) for the '
+                                f'predictor to subscribe; got {sorted(names) or "none"}')
+        package, _, name = names.pop().split('/')
+        try:
+            out[topic] = getattr(importlib.import_module(f'{package}.msg'), name)
+        except (ImportError, AttributeError):
+            raise TopicMapError(f'topic {topic}: message type {package}/msg/{name} is not '
+                                f'installed (build and source its interface package)') \
+                from None
+    return out
+
+
+def plan_limits(vessel) -> ActuatorLimits | None:
+    """Limits of control plans, for vessels with the plan message's actuators; else None."""
+    if vessel.control_names != PLAN_CONTROLS:
+        return None
+    return ActuatorLimits(vessel.actuator('n').high, vessel.actuator('delta_port').high)
+
+
 def main(args=None) -> int:
     """Run the predictor until interrupted; exit 2 with one line on a bad model or value."""
     return run_node(PredictorNode, NODE_NAME, (CheckpointError, FileNotFoundError,
-                                               ValueError), args)
+                                               ValueError, VesselError, TopicMapError), args)
 
 
 if __name__ == '__main__':

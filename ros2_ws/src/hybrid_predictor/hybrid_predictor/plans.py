@@ -15,6 +15,8 @@ import math
 
 import numpy as np
 
+from hybrid_models.metrics import positions
+
 ACTUATOR_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd')
 WIND_FIELDS = ('wind_speed', 'wind_direction')
 
@@ -74,22 +76,22 @@ def plan_controls(plan: dict[str, np.ndarray], latest_control: np.ndarray, horiz
     return out
 
 
-def track(states: np.ndarray, pose: tuple[float, float, float], dt: float,
-          positions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def track(states: np.ndarray, pose: tuple[float, float, float], spec,
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
     Return the forecast track: north, east (m, NED) and heading (rad) per step.
 
-    ``positions(states)`` is the trajectory metric's integration from the origin with
-    heading 0 (hybrid_models.metrics); starting from ``pose`` = (x, y, psi) instead only
-    rotates that track by psi and shifts it, so the published track is exactly what
-    the trajectory error measures.
+    ``hybrid_models.metrics.positions`` integrates the track from the origin with
+    heading 0, as the trajectory error does; starting from ``pose`` = (x, y, psi)
+    instead only rotates that track by psi and shifts it, so the published track is
+    exactly what the trajectory error measures. ``spec`` is the model's vessel.
     """
     x0, y0, psi0 = pose
-    local = positions(states)                       # (..., H, 2) north, east
+    local = positions(states, spec)                 # (..., H, 2) north, east
     cos_p, sin_p = math.cos(psi0), math.sin(psi0)
     north = x0 + cos_p * local[..., 0] - sin_p * local[..., 1]
     east = y0 + sin_p * local[..., 0] + cos_p * local[..., 1]
-    heading = psi0 + dt * np.cumsum(states[..., 3], axis=-1)
+    heading = psi0 + spec.dt * np.cumsum(states[..., spec.state_index('r')], axis=-1)
     return north, east, heading
 
 

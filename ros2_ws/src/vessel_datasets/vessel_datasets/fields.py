@@ -119,9 +119,9 @@ def has_header_stamp(fielddefs: dict, msgtype: str) -> bool:
     return bool(header and header == (Nodetype.NAME, 'std_msgs/msg/Header'))
 
 
-def compile_getter(path: str) -> Callable[[Any], float]:
+def compile_getter(path: str, absent: Any = math.nan) -> Callable[[Any], Any]:
     """
-    Make a function reading ``path`` from a message; NaN if an index is absent.
+    Make a function reading ``path`` from a message; ``absent`` if an index is absent.
 
     Plain dotted paths become one ``operator.attrgetter`` (the fast, common case).
     """
@@ -139,7 +139,7 @@ def compile_getter(path: str) -> Callable[[Any], float]:
                 elif seg.key is not None:
                     obj = obj[getattr(parent, NAME_LIST).index(seg.key)]
         except (IndexError, ValueError):  # element absent from this message
-            return math.nan
+            return absent
         return obj
 
     return get

@@ -85,8 +85,14 @@ def channel_methods(topic_map: TopicMap) -> dict[str, str]:
     return out
 
 
-def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap) -> dict[str, np.ndarray]:
-    """Dataset columns of the map's vessel (docs/conventions.md) from resampled channels."""
+def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
+               relative: bool = True) -> dict[str, np.ndarray]:
+    """
+    Return the map's vessel's dataset columns (docs/conventions.md) from channels.
+
+    ``relative``: position north/east of the first sample (a dataset run); otherwise in
+    the recording's own frame origin (the predictor's published track).
+    """
     vessel = topic_map.vessel
     out: dict[str, np.ndarray] = {}
     zero = np.zeros_like(np.asarray(ch['surge'], float))
@@ -109,7 +115,9 @@ def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap) -> dict[str, n
     else:
         north, east = ch['pos_x'], ch['pos_y']
     north, east = np.asarray(north, float), np.asarray(east, float)
-    out['x'], out['y'] = north - north[0], east - east[0]
+    if relative:
+        north, east = north - north[0], east - east[0]
+    out['x'], out['y'] = north, east
 
     for name in vessel.actuator_names:
         out[name] = np.asarray(ch[ACTUATOR_PREFIX + name], float)
