@@ -30,6 +30,7 @@ import sys
 from tqdm import tqdm
 
 from vessel_datasets import format as fmt
+from vessel_datasets import map_checks
 from vessel_datasets.bag_source import BagError, MessageDefinitionError, MessageDefinitions
 from vessel_datasets.convert import BagResult, Options, convert_bags, write
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
@@ -79,6 +80,10 @@ def parse_args(argv):
     parser.add_argument('--overwrite', action='store_true',
                         help='replace an existing dataset in --out')
     parser.add_argument('--quiet', action='store_true', help='no progress bar')
+    parser.add_argument('--accept-checks', action='store_true',
+                        help='write even when map checks fail (vessel_datasets/map_checks.py)')
+    parser.add_argument('--refuse-spikes', action='store_true',
+                        help='fail the spike check instead of dropping spikes')
     args = parser.parse_args(argv)
     if args.msg_package and not args.msg_dirs:
         parser.error('--msg-package names the package of the .msg files of --msg-dir; '
@@ -137,6 +142,9 @@ def main(argv=None) -> int:
     if not any(r.runs for r in results):
         print('error: nothing usable remained; no dataset written', file=sys.stderr)
         return EXIT_NOTHING
+    if not map_checks.check_bag_results(results, topic_map.vessel, args.accept_checks,
+                                        args.refuse_spikes, sys.stderr):
+        return EXIT_USAGE
     manifest = write(out, results, topic_map, opts, argv=sys.argv if argv is None else argv,
                      definitions=definitions)
     _summary(results, manifest)
