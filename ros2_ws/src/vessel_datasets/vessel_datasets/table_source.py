@@ -50,9 +50,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from vessel_description import Vessel
+from vessel_description.vessel import recording_map
 from vessel_physics import frames
 
 from . import format as fmt
@@ -181,26 +181,7 @@ class ColumnMap:
 # ----------------------------------------------------------------- parsing
 def column_map_for(vessel: Vessel, override: str | os.PathLike | None = None) -> ColumnMap:
     """Return the column map of a vessel: its ``recordings.columns``, or an override file."""
-    if override is not None:
-        path = Path(override)
-        try:
-            data = yaml.safe_load(path.read_text())
-        except OSError as exc:
-            raise ColumnMapError(f'column map {path}: cannot read ({exc.strerror})') from None
-        except yaml.YAMLError as exc:
-            raise ColumnMapError(f'column map {path}: not valid YAML '
-                                 f'({str(exc).splitlines()[0]})') from None
-        where = f'column map {path}'
-    else:
-        data = vessel.recordings.get('columns')
-        where = f'vessel {vessel.source}: recordings.columns'
-        if data is None:
-            raise ColumnMapError(f'{where} is missing: the vessel file says nothing about '
-                                 f'which columns of a table carry its quantities')
-    try:
-        return parse_column_map(data, vessel)
-    except ColumnMapError as exc:
-        raise ColumnMapError(f'{where}: {exc}') from None
+    return recording_map(vessel, 'columns', override, parse_column_map, ColumnMapError)
 
 
 def parse_column_map(data: Any, vessel: Vessel) -> ColumnMap:

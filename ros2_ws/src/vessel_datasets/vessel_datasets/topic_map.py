@@ -20,12 +20,10 @@ import copy
 from dataclasses import dataclass, field
 import math
 import os
-from pathlib import Path
 from typing import Any
 
-import yaml
-
 from vessel_description import Vessel
+from vessel_description.vessel import recording_map
 
 FORMAT = 'vessel-topic-map/1'
 RESAMPLE_METHODS = ('linear', 'hold')
@@ -173,25 +171,7 @@ def topic_map_for(vessel: Vessel, override: str | os.PathLike | None = None) -> 
     An override is a YAML file holding just the topic map, for a vessel recorded with
     other topics than its description names.
     """
-    if override is not None:
-        path = Path(override)
-        try:
-            data = yaml.safe_load(path.read_text())
-        except OSError as exc:
-            raise TopicMapError(f'topic map {path}: cannot read ({exc.strerror})') from None
-        except yaml.YAMLError as exc:
-            raise TopicMapError(f'topic map {path}: not valid YAML ({exc})') from None
-        where = f'topic map {path}'
-    else:
-        data = vessel.recordings.get('topics')
-        where = f'vessel {vessel.source}: recordings.topics'
-        if data is None:
-            raise TopicMapError(f'{where} is missing: the vessel file says nothing about '
-                                f'which topics carry its quantities')
-    try:
-        return parse_topic_map(data, vessel)
-    except TopicMapError as exc:
-        raise TopicMapError(f'{where}: {exc}') from None
+    return recording_map(vessel, 'topics', override, parse_topic_map, TopicMapError)
 
 
 def parse_topic_map(data: Any, vessel: Vessel) -> TopicMap:

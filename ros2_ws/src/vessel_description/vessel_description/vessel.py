@@ -13,7 +13,7 @@ Loading checks the whole description and refuses it with one line per error.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 import copy
 from dataclasses import dataclass, field
 import math
@@ -373,11 +373,39 @@ def load_vessel(name_or_path: str | os.PathLike) -> Vessel:
             raise VesselError(f'vessel {name_or_path}: no such file, and not a shipped vessel '
                               f'({", ".join(shipped_vessels())})')
         path = shipped
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise VesselError(f'vessel {path}: cannot read ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise VesselError(f'vessel {path}: not valid YAML ({str(exc).splitlines()[0]})') \
-            from None
+    data = read_yaml(path, VesselError, 'vessel')
     return parse_vessel(data, str(path))
+
+
+def read_yaml(path: str | os.PathLike, error: type[Exception], what: str) -> Any:
+    """Return a YAML file's content; raise ``error`` with one line naming ``what`` and path."""
+    path = Path(path)
+    try:
+        return yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise error(f'{what} {path}: cannot read ({exc.strerror})') from None
+    except yaml.YAMLError as exc:
+        raise error(f'{what} {path}: not valid YAML ({str(exc).splitlines()[0]})') from None
+
+
+def recording_map(vessel: Vessel, kind: str, override: str | os.PathLike | None,
+                  parse: Callable[[Any, Vessel], Any], error: type[Exception]) -> Any:
+    """
+    Parse the vessel's ``recordings.<kind>`` map, or an override file holding just it.
+
+    ``parse(data, vessel)`` builds the map; every error it raises is prefixed with where
+    the map came from.
+    """
+    label = {'topics': 'topic map', 'columns': 'column map'}[kind]
+    if override is not None:
+        data, where = read_yaml(override, error, label), f'{label} {override}'
+    else:
+        data, where = vessel.recordings.get(kind), f'vessel {vessel.source}: recordings.{kind}'
+        if data is None:
+            carriers = 'topics' if kind == 'topics' else 'columns of a table'
+            raise error(f'{where} is missing: the vessel file says nothing about which '
+                        f'{carriers} carry its quantities')
+    try:
+        return parse(data, vessel)
+    except error as exc:
+        raise error(f'{where}: {exc}') from None
