@@ -18,7 +18,8 @@ from rosbags.highlevel import AnyReader
 
 from vessel_datasets import synthetic
 from vessel_datasets.convert import Options, convert_bags, write
-from vessel_datasets.topic_map import load_topic_map
+from vessel_datasets.topic_map import topic_map_for
+from vessel_description import load_vessel
 
 GOAL_RATIO = 0.7
 GOAL_96H_S = 60.0
@@ -89,7 +90,7 @@ def bare_pass(bag: Path) -> tuple[int, float]:
 
 def converter_pass(bag: Path, out: Path) -> tuple[int, float, int, int]:
     """Convert the bag to a dataset on disk, as offline/bag_to_dataset.py does."""
-    topic_map, opts = load_topic_map(), Options.from_yaml()
+    topic_map, opts = topic_map_for(load_vessel(synthetic.SIM_VESSEL)), Options.from_yaml()
     start = time.perf_counter()
     results = convert_bags([bag], topic_map, opts)
     write(out, results, topic_map, opts)
