@@ -1,0 +1,209 @@
+#!/usr/bin/env python3
+"""
+Replay a held-out snuboat bag over DDS into the running predictor; compare with offline.
+
+Builds the boat's message package (snumsg_pkg) from its .msg files in a scratch colcon
+workspace, starts the installed predictor with the snuboat vessel file and a trained
+checkpoint, publishes the bag's /sensor and /ctrl_fb_boat messages with the boat's own
+types at their recorded pace, and collects /vessel/forecast. Each published forecast is
+then recomputed offline from the same messages (the same input window code, the same
+compiled engine and bound) and the two are compared. Prints one JSON document.
+
+usage (repo root, after `make setup` and docs/results/real/snuboat/run.sh):
+  tools/with_env.sh python docs/results/real/snuboat/replay.py \\
+      --model /tmp/real/snuboat_runs/hybrid/model.safetensors \\
+      --bag ../shared/real/snuboat/bags/FREE_RUNNING_8_0813_223706
+"""
+
+import argparse
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[4]
+PACKAGE_XML = """<?xml version="1.0"?>
+<package format="3">
+  <name>snumsg_pkg</name>
+  <version>0.0.0</version>
+  <description>snuboat message types, built from the boat's .msg files</description>
+  <maintainer email="maintainers@hybrid-ship.dev">hybrid-ship maintainers</maintainer>
+  <license>unknown</license>
+  <buildtool_depend>ament_cmake</buildtool_depend>
+  <buildtool_depend>rosidl_default_generators</buildtool_depend>
+  <depend>builtin_interfaces</depend>
+  <exec_depend>rosidl_default_runtime</exec_depend>
+  <member_of_group>rosidl_interface_packages</member_of_group>
+  <export><build_type>ament_cmake</build_type></export>
+</package>
+"""
+CMAKE = """cmake_minimum_required(VERSION 3.8)
+project(snumsg_pkg)
+find_package(ament_cmake REQUIRED)
+find_package(rosidl_default_generators REQUIRED)
+find_package(builtin_interfaces REQUIRED)
+file(GLOB MSGS RELATIVE ${CMAKE_CURRENT_SOURCE_DIR} msg/*.msg)
+rosidl_generate_interfaces(${PROJECT_NAME} ${MSGS} DEPENDENCIES builtin_interfaces)
+ament_export_dependencies(rosidl_default_runtime)
+ament_package()
+"""
+TOPICS = ('/sensor', '/ctrl_fb_boat')
+
+
+def build_messages(msg_dir: Path, workspace: Path) -> Path:
+    """Build snumsg_pkg from the boat's .msg files with colcon; return its install prefix."""
+    pkg = workspace / 'src' / 'snumsg_pkg'
+    (pkg / 'msg').mkdir(parents=True, exist_ok=True)
+    for f in msg_dir.glob('*.msg'):
+        (pkg / 'msg' / f.name).write_text(f.read_text())
+    (pkg / 'package.xml').write_text(PACKAGE_XML)
+    (pkg / 'CMakeLists.txt').write_text(CMAKE)
+    env = dict(os.environ, AMENT_PREFIX_PATH=os.environ.get('VIRTUAL_ENV', sys.prefix))
+    done = subprocess.run(['colcon', 'build', '--event-handlers', 'console_direct-'],
+                          cwd=workspace, env=env, capture_output=True, text=True)
+    if done.returncode:
+        sys.exit(f'replay: error: building snumsg_pkg failed: {done.stderr[-500:]}')
+    return workspace / 'install'
+
+
+def bag_messages(bag: Path, msg_dir: Path):
+    """Return [(log_ns, topic, rosbags message)] of the replayed topics, in log order."""
+    from vessel_datasets.bag_source import BagReader, MessageDefinitions, find_bags
+
+    [found] = find_bags([bag])
+    out = []
+    with BagReader(found, MessageDefinitions([msg_dir], package='snumsg_pkg')) as reader:
+        store = reader.typestore
+        for topic, log_ns, raw in reader.messages(TOPICS):
+            out.append((log_ns, topic, store.deserialize_cdr(raw,
+                                                             reader.topics[topic].msgtype)))
+    return sorted(out, key=lambda m: m[0])
+
+
+def main() -> int:
+    """Replay, collect, recompute, compare; print JSON."""
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--model', required=True, type=Path, help='snuboat checkpoint')
+    parser.add_argument('--bag', required=True, type=Path, help='a held-out snuboat bag')
+    parser.add_argument('--msg-dir', type=Path, default=REPO.parent / 'shared' / 'real' /
+                        'snuboat' / 'msg', help='the boat\'s .msg folder')
+    parser.add_argument('--seconds', type=float, default=40.0, help='how much to replay')
+    args = parser.parse_args()
+    if 'SNUBOAT_REPLAY_WORK' not in os.environ:
+        # The built package's libraries must be on the loader path before the process
+        # starts: build, then run this script again in that environment.
+        work = Path(tempfile.mkdtemp(prefix='snuboat_replay_'))
+        prefix = build_messages(args.msg_dir, work) / 'snumsg_pkg'
+        site = next(prefix.glob('lib/python*/site-packages'))
+        env = dict(os.environ, SNUBOAT_REPLAY_WORK=str(work), PYTHONUNBUFFERED='1',
+                   AMENT_PREFIX_PATH=f'{prefix}:' + os.environ.get('AMENT_PREFIX_PATH', ''),
+                   PYTHONPATH=f'{site}:' + os.environ.get('PYTHONPATH', ''),
+                   LD_LIBRARY_PATH=f'{prefix / "lib"}:' + os.environ.get('LD_LIBRARY_PATH', ''))
+        os.execve(sys.executable, [sys.executable, *sys.argv], env)
+    work = Path(os.environ['SNUBOAT_REPLAY_WORK'])
+    env = dict(os.environ)
+
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from snumsg_pkg.msg import Control, Sensor
+
+    from builtin_interfaces.msg import Time
+    from hybrid_models.engine import ForecastEngine
+    from hybrid_predictor.input_window import InputWindow, channel_reader
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_datasets.topic_map import topic_map_for
+    from vessel_description import load_vessel
+
+    messages = bag_messages(args.bag, args.msg_dir)
+    exe = REPO / 'ros2_ws/install/hybrid_predictor/lib/hybrid_predictor/predictor'
+    log = open(work / 'predictor.log', 'w')
+    predictor = subprocess.Popen([str(exe), '--ros-args', '-p', f'model_path:={args.model}',
+                                  '-p', 'vessel:=snuboat'], env=env, stdout=log,
+                                 stderr=subprocess.STDOUT, start_new_session=True)
+    rclpy.init()
+    node = rclpy.create_node('snuboat_replay')
+    forecasts = []
+    node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
+    pubs = {'/sensor': node.create_publisher(Sensor, '/sensor', 100),
+            '/ctrl_fb_boat': node.create_publisher(Control, '/ctrl_fb_boat', 100)}
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    deadline = time.monotonic() + 60
+    while 'compiled in' not in (work / 'predictor.log').read_text():
+        if time.monotonic() > deadline or predictor.poll() is not None:
+            sys.exit('replay: error: the predictor did not start: '
+                     + (work / 'predictor.log').read_text()[-1000:])
+        executor.spin_once(timeout_sec=0.2)
+
+    vessel = load_vessel('snuboat')
+    topic_map = topic_map_for(vessel)
+    readers = {t: channel_reader(topic_map, t) for t in TOPICS}
+    sent = []  # (wall time s, topic, channel values) as the predictor timed them
+    t0_bag, t0_wall = messages[0][0], time.monotonic()
+    for log_ns, topic, msg in messages:
+        if (log_ns - t0_bag) * 1e-9 > args.seconds:
+            break
+        while time.monotonic() - t0_wall < (log_ns - t0_bag) * 1e-9:
+            executor.spin_once(timeout_sec=0.002)
+        tick = Time(sec=int(msg.tick.sec), nanosec=int(msg.tick.nanosec))
+        if topic == '/sensor':
+            out = Sensor(tick=tick, status=msg.status, pose=[float(x) for x in msg.pose],
+                         vel=[float(x) for x in msg.vel])
+        else:
+            out = Control(tick=tick, ctrl=[float(x) for x in msg.ctrl])
+        pubs[topic].publish(out)
+        try:
+            sent.append((time.time(), topic, readers[topic](msg)))
+        except ValueError:
+            pass
+    end = time.monotonic() + 3
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.05)
+    predictor.terminate()
+    predictor.wait(10)
+
+    engine = ForecastEngine.from_checkpoint(args.model)
+    model = engine.model
+    model.set_threshold(0.15)  # the predictor's default relative_threshold
+    engine = ForecastEngine(model, model_id=engine.model_id, config=engine.config)
+    diffs, scale = [], None
+    for fc in forecasts:
+        t_end = fc.header.stamp.sec + fc.header.stamp.nanosec * 1e-9
+        window = InputWindow(topic_map, engine.window, vessel.dt, 2.5, 5.0)
+        for t, topic, values in sent:
+            if t <= t_end + 0.05 and not (topic == '/sensor' and t > t_end + 0.05):
+                window.push(topic, t, values)
+        result = window.assemble(now=t_end)
+        if not result.ready:
+            continue
+        future = np.broadcast_to(result.controls[-1], (1, fc.horizon, vessel.n_control))
+        offline = engine.forecast(result.states, result.controls, future).hybrid[0]
+        online = np.reshape(fc.hybrid, (fc.horizon, vessel.n_state))
+        scale = np.maximum(np.abs(offline).max(axis=0), 1e-3)
+        diffs.append(np.abs(online - offline).max(axis=0) / scale)
+    diffs = np.asarray(diffs)
+    print(json.dumps({
+        'bag': args.bag.name, 'replayed_s': args.seconds,
+        'messages_published': len([s for s in sent]), 'forecasts_published': len(forecasts),
+        'forecasts_compared': int(len(diffs)),
+        'state_names': list(forecasts[0].state_names) if forecasts else None,
+        'control_names': list(forecasts[0].control_names) if forecasts else None,
+        'max_relative_difference_online_vs_offline': None if not len(diffs) else
+        dict(zip(vessel.state_names, diffs.max(axis=0).round(6).tolist(), strict=True)),
+        'median_relative_difference': None if not len(diffs) else
+        dict(zip(vessel.state_names, np.median(diffs, axis=0).round(6).tolist(),
+                 strict=True)),
+    }, indent=2))
+    node.destroy_node()
+    rclpy.shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
