@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""
+r"""
 Replay a held-out snuboat bag over DDS into the running predictor; compare with offline.
 
 Builds the boat's message package (snumsg_pkg) from its .msg files in a scratch colcon
@@ -92,7 +92,7 @@ def main() -> int:
     parser.add_argument('--model', required=True, type=Path, help='snuboat checkpoint')
     parser.add_argument('--bag', required=True, type=Path, help='a held-out snuboat bag')
     parser.add_argument('--msg-dir', type=Path, default=REPO.parent / 'shared' / 'real' /
-                        'snuboat' / 'msg', help='the boat\'s .msg folder')
+                        'snuboat' / 'msg', help="the boat's .msg folder")
     parser.add_argument('--seconds', type=float, default=40.0, help='how much to replay')
     args = parser.parse_args()
     if 'SNUBOAT_REPLAY_WORK' not in os.environ:
@@ -109,11 +109,11 @@ def main() -> int:
     work = Path(os.environ['SNUBOAT_REPLAY_WORK'])
     env = dict(os.environ)
 
+    from builtin_interfaces.msg import Time
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from snumsg_pkg.msg import Control, Sensor
 
-    from builtin_interfaces.msg import Time
     from hybrid_models.engine import ForecastEngine
     from hybrid_predictor.input_window import InputWindow, channel_reader
     from hybrid_predictor_interfaces.msg import Forecast
