@@ -32,6 +32,7 @@ from tqdm import tqdm
 from vessel_datasets import format as fmt
 from vessel_datasets import map_checks
 from vessel_datasets.bag_source import BagError, MessageDefinitionError, MessageDefinitions
+from vessel_datasets.cli import add_dataset_options, resolve_options
 from vessel_datasets.convert import BagResult, Options, convert_bags, write
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
 from vessel_description import VesselError, load_vessel
@@ -46,26 +47,13 @@ def parse_args(argv):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('bags', nargs='+', metavar='BAG',
                         help='rosbag2 directory, .mcap file, or a folder of them')
-    parser.add_argument('--out', required=True, metavar='DATASET',
-                        help='dataset directory to write')
-    parser.add_argument('--vessel', required=True, metavar='FILE',
-                        help='vessel description (YAML), or the name of a shipped one '
-                             "(e.g. patrol_boat, the simulator's)")
+    add_dataset_options(parser, defaults)
     parser.add_argument('--topic-map', metavar='YAML',
                         help='which topic/field gives each quantity, replacing the vessel '
-                             "file's recordings.topics"),
+                             "file's recordings.topics")
     parser.add_argument('--time-source', choices=('header', 'log'),
                         help=f'header stamps or log (receive) times '
                              f'(default {defaults.time_source})')
-    parser.add_argument('--max-gap', type=float, dest='max_gap_s', metavar='S',
-                        help=f'split runs where a topic is silent longer than this '
-                             f'(default {defaults.max_gap_s} s)')
-    parser.add_argument('--min-run', type=float, dest='min_run_s', metavar='S',
-                        help=f'drop runs shorter than this (default {defaults.min_run_s} s)')
-    parser.add_argument('--seed', type=int, help=f'split seed (default {defaults.seed})')
-    parser.add_argument('--split', metavar='TRAIN,VAL,TEST',
-                        help='fractions of runs per split (default '
-                             + ','.join(f'{f:g}' for f in defaults.split) + ')')
     parser.add_argument('--msg-dir', action='append', default=[], dest='msg_dirs',
                         metavar='DIR',
                         help='folder of .msg files (searched recursively) for the message '
@@ -77,30 +65,11 @@ def parse_args(argv):
                              '<pkg>/msg/ folder')
     parser.add_argument('--jobs', type=int, default=1, metavar='N',
                         help='convert N bags at a time in separate processes (default 1)')
-    parser.add_argument('--overwrite', action='store_true',
-                        help='replace an existing dataset in --out')
-    parser.add_argument('--quiet', action='store_true', help='no progress bar')
-    parser.add_argument('--accept-checks', action='store_true',
-                        help='write even when map checks fail (vessel_datasets/map_checks.py)')
-    parser.add_argument('--refuse-spikes', action='store_true',
-                        help='fail the spike check instead of dropping spikes')
     args = parser.parse_args(argv)
     if args.msg_package and not args.msg_dirs:
         parser.error('--msg-package names the package of the .msg files of --msg-dir; '
                      'give --msg-dir too')
-    split = None
-    if args.split:
-        try:
-            split = tuple(float(x) for x in args.split.split(','))
-        except ValueError:
-            parser.error(f'--split wants three numbers like 0.6,0.1,0.3, got {args.split!r}')
-    try:
-        opts = Options.from_yaml(time_source=args.time_source, max_gap_s=args.max_gap_s,
-                                 min_run_s=args.min_run_s, seed=args.seed, split=split)
-        fmt.split_runs([], opts.seed, opts.split)  # validates the fractions
-    except (ValueError, fmt.DatasetError) as exc:
-        parser.error(str(exc))
-    return args, opts
+    return args, resolve_options(parser, args, time_source=args.time_source)
 
 
 def main(argv=None) -> int:

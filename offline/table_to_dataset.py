@@ -37,6 +37,7 @@ from tqdm import tqdm
 from vessel_datasets import format as fmt
 from vessel_datasets import map_checks
 from vessel_datasets import table_source as tables
+from vessel_datasets.cli import add_dataset_options, resolve_options
 from vessel_datasets.convert import Options
 from vessel_description import VesselError, load_vessel
 
@@ -50,56 +51,23 @@ def parse_args(argv):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('tables', nargs='+', metavar='FILE_OR_DIR',
                         help='table file, or a folder of them (.csv .dat .txt .tsv .log)')
-    parser.add_argument('--out', required=True, metavar='DATASET',
-                        help='dataset directory to write')
-    parser.add_argument('--vessel', required=True, metavar='FILE',
-                        help='vessel description (YAML), or the name of a shipped one')
+    add_dataset_options(parser, defaults)
     parser.add_argument('--column-map', metavar='YAML',
                         help="how to read the tables, replacing the vessel file's "
                              'recordings.columns')
     parser.add_argument('--glob', metavar='PATTERN',
                         help='files to take from folders (default: the suffixes above)')
-    parser.add_argument('--max-gap', type=float, dest='max_gap_s', metavar='S',
-                        default=defaults.max_gap_s,
-                        help=f'split runs where the time jumps by more than this '
-                             f'(default {defaults.max_gap_s} s)')
-    parser.add_argument('--min-run', type=float, dest='min_run_s', metavar='S',
-                        default=defaults.min_run_s,
-                        help=f'drop runs shorter than this (default {defaults.min_run_s} s)')
-    parser.add_argument('--seed', type=int, default=defaults.seed,
-                        help=f'split seed (default {defaults.seed})')
-    parser.add_argument('--split', metavar='TRAIN,VAL,TEST',
-                        help='fractions of runs per split (default '
-                             + ','.join(f'{f:g}' for f in defaults.split) + ')')
     parser.add_argument('--holdout', nargs='+', default=[], metavar='RUN',
                         help='runs for the test split, whole (a run id or file stem); the '
                              'others share the remaining fractions')
     parser.add_argument('--val', nargs='+', default=[], metavar='RUN',
                         help='runs for the validation split, whole')
-    parser.add_argument('--accept-checks', action='store_true',
-                        help='write the dataset even when map checks fail (they are '
-                             'still printed and recorded)')
-    parser.add_argument('--refuse-spikes', action='store_true',
-                        help='fail the spike check instead of dropping spikes')
     parser.add_argument('--dry-run', action='store_true',
                         help='convert and check, write nothing')
-    parser.add_argument('--overwrite', action='store_true',
-                        help='replace an existing dataset in --out')
-    parser.add_argument('--quiet', action='store_true', help='no progress bar')
     args = parser.parse_args(argv)
-    split = defaults.split
-    if args.split:
-        try:
-            split = tuple(float(x) for x in args.split.split(','))
-        except ValueError:
-            parser.error(f'--split wants three numbers like 0.6,0.1,0.3, got {args.split!r}')
-    try:
-        fmt.split_runs([], args.seed, split)  # validates the fractions
-    except fmt.DatasetError as exc:
-        parser.error(str(exc))
-    if not (args.max_gap_s > 0 and args.min_run_s >= 0):
-        parser.error('--max-gap must be positive and --min-run not negative')
-    return args, split
+    opts = resolve_options(parser, args)
+    args.max_gap_s, args.min_run_s, args.seed = opts.max_gap_s, opts.min_run_s, opts.seed
+    return args, opts.split
 
 
 def main(argv=None) -> int:

@@ -33,6 +33,7 @@ import numpy as np
 import pandas as pd
 
 from vessel_description import Vessel
+from vessel_description.vessel import plain
 from vessel_physics.integrator import kinematics
 
 # A slope within this of 1 (and a correlation at least MIN_CORR) passes.
@@ -205,14 +206,14 @@ def spike_check(counts: Mapping[str, Mapping[str, Any]], refuse: bool,
             total += n_out + n_jump
     if not parts:
         return Check('spikes', 0, 'none', True, None, 'none',
-                     {'kind': 'spikes', 'columns': _plain(counts)})
+                     {'kind': 'spikes', 'columns': plain(counts)})
     if total and refuse:
         failed = True
     verdict = ('refused (--refuse-spikes)' if refuse and total else 'dropped') if total else ''
     message = '; '.join(parts) + (f' -> {total} samples {verdict}' if total else '')
     return Check('spikes', float(total), 'none', not failed,
                  ', '.join(dict.fromkeys(suspects)) or None, message,
-                 {'kind': 'spikes', 'refuse': refuse, 'columns': _plain(counts)})
+                 {'kind': 'spikes', 'refuse': refuse, 'columns': plain(counts)})
 
 
 def _label_of(column: str, labels: Mapping[str, str]) -> str:
@@ -552,13 +553,3 @@ def check_bag_results(results: Sequence[Any], vessel: Vessel, accept: bool,
     for r in results:
         r.report['checks'] = {run_id: data['runs'][run_id] for run_id in r.runs}
     return go_on
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value

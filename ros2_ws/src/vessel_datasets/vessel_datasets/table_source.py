@@ -52,7 +52,7 @@ import numpy as np
 import pandas as pd
 
 from vessel_description import Vessel
-from vessel_description.vessel import recording_map
+from vessel_description.vessel import plain, recording_map
 from vessel_physics import frames
 
 from . import format as fmt
@@ -175,7 +175,7 @@ class ColumnMap:
 
     def to_dict(self) -> dict[str, Any]:
         """Return the map as given (for the dataset manifest)."""
-        return _plain(self.source)
+        return plain(self.source)
 
 
 # ----------------------------------------------------------------- parsing
@@ -262,7 +262,7 @@ def parse_column_map(data: Any, vessel: Vessel) -> ColumnMap:
                      names=tuple(names) if names else None, encoding=encoding, time=time,
                      rate_hz=float(rate) if rate is not None else None, run=run,
                      sources=sources, frames=group_frames, heading_convention=convention,
-                     source=_plain(data))
+                     source=plain(data))
 
 
 def _entry(label: str, spec: Any, kind: str | None, unit: str | None = None,
@@ -729,12 +729,3 @@ def write(out: str | os.PathLike, results: Sequence[TableResult], cmap: ColumnMa
     return fmt.write_dataset(out, runs, vessel=cmap.vessel, provenance=provenance,
                              seed=seed, fractions=fractions, split=split,
                              run_sources=sources, extra=extra)
-
-
-def _plain(value: Any) -> Any:
-    """Copy YAML data into plain dicts and lists (JSON-serializable)."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value

@@ -23,7 +23,7 @@ import os
 from typing import Any
 
 from vessel_description import Vessel
-from vessel_description.vessel import recording_map
+from vessel_description.vessel import plain, recording_map
 
 FORMAT = 'vessel-topic-map/1'
 RESAMPLE_METHODS = ('linear', 'hold')
@@ -207,7 +207,7 @@ def parse_topic_map(data: Any, vessel: Vessel) -> TopicMap:
     stamps = _parse_overrides(data.get('stamps', {}), 'stamps', _time_source)
     gaps = _parse_overrides(data.get('max_gap_s', {}), 'max_gap_s', _positive)
     return TopicMap(vessel=vessel, entries=tuple(entries), frames=frames, resample=resample,
-                    stamps=stamps, max_gap_s=gaps, source=_plain(data))
+                    stamps=stamps, max_gap_s=gaps, source=plain(data))
 
 
 def _parse_group(group, spec, allowed, default_frame, default_resample, alternatives):
@@ -274,12 +274,3 @@ def _positive(key, topic, value):
     if not isinstance(value, (int, float)) or not value > 0:
         raise TopicMapError(f'{key}[{topic}] must be a positive number of seconds')
     return float(value)
-
-
-def _plain(value: Any) -> Any:
-    """Copy YAML data into plain dicts and lists (JSON-serializable)."""
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value

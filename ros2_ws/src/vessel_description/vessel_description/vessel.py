@@ -254,7 +254,7 @@ def parse_vessel(data: Any, source: str = '<inline>') -> Vessel:
     return Vessel(name=name, rate_hz=rate, window_s=window_s, horizon_s=horizon_s,
                   states=states, actuators=actuators, environment=environment,
                   particulars=particulars, limits=limits, physics=physics,
-                  recordings=_plain(recordings), description=str(description), source=source)
+                  recordings=plain(recordings), description=str(description), source=source)
 
 
 def _positive(value: Any, where: str) -> float:
@@ -344,12 +344,12 @@ def _limits(value: Any, states: tuple[str, ...], where: str) -> dict[str, tuple[
     return out
 
 
-def _plain(value: Any) -> Any:
+def plain(value: Any) -> Any:
     """Copy YAML data into plain dicts and lists (JSON-serializable)."""
     if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
+        return {str(k): plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
+        return [plain(v) for v in value]
     return value
 
 
