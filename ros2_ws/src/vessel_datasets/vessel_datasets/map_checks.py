@@ -345,36 +345,34 @@ def _velocity(stats: dict, labels: Mapping[str, str]) -> Check:
 
 
 def _course(stats: dict, labels: Mapping[str, str]) -> Check:
-    name = 'course of velocity vs of d(position)/dt'
-    expected = f'rms < {MAX_COURSE_DEG:g} deg'
-    if not _moving(stats):
-        return Check(name, None, expected, True, None,
-                     f'skipped: the vessel moves slower than {MIN_SPEED:g} m/s', stats)
-    rms = math.sqrt(stats['sum_sq'] / stats['n'])
-    figures = f'rms difference {rms:.2f} deg'
-    if rms < MAX_COURSE_DEG:
-        return Check(name, rms, expected, True, None, f'{figures} -> ok', stats)
-    suspect = labels['velocity']
-    why = (f'the velocity points elsewhere than the track: earth-frame velocities mapped '
-           f'as body (surge/sway), swapped or sign-flipped components ({suspect}), or a '
-           f'wrong heading or position frame ({labels["heading"]}, {labels["position"]})')
-    return Check(name, rms, expected, False, suspect, f'{figures} -> {why}', stats)
+    return _angle_rms(
+        stats, 'course of velocity vs of d(position)/dt', MAX_COURSE_DEG, 'rms difference',
+        2, labels['velocity'],
+        f'the velocity points elsewhere than the track: earth-frame velocities mapped as '
+        f'body (surge/sway), swapped or sign-flipped components ({labels["velocity"]}), or '
+        f'a wrong heading or position frame ({labels["heading"]}, {labels["position"]})')
 
 
 def _drift(stats: dict, labels: Mapping[str, str]) -> Check:
-    name = 'drift angle atan2(v, |u|)'
-    expected = f'rms < {MAX_DRIFT_DEG:g} deg under way'
+    return _angle_rms(
+        stats, 'drift angle atan2(v, |u|)', MAX_DRIFT_DEG, 'rms', 1, labels['heading'],
+        f'the bow points far from the track: heading convention or unit wrong '
+        f'({labels["heading"]}), or surge/sway swapped ({labels["velocity"]}); legitimate '
+        f'only for a vessel moving sideways (then --accept-checks)',
+        expected_suffix=' under way')
+
+
+def _angle_rms(stats: dict, name: str, limit_deg: float, label: str, digits: int,
+               suspect: str, why: str, expected_suffix: str = '') -> Check:
+    """Pass when the rms of an angle (deg) over moving samples stays under ``limit_deg``."""
+    expected = f'rms < {limit_deg:g} deg{expected_suffix}'
     if not _moving(stats):
         return Check(name, None, expected, True, None,
                      f'skipped: the vessel moves slower than {MIN_SPEED:g} m/s', stats)
     rms = math.sqrt(stats['sum_sq'] / stats['n'])
-    figures = f'rms {rms:.1f} deg'
-    if rms < MAX_DRIFT_DEG:
+    figures = f'{label} {rms:.{digits}f} deg'
+    if rms < limit_deg:
         return Check(name, rms, expected, True, None, f'{figures} -> ok', stats)
-    suspect = labels['heading']
-    why = (f'the bow points far from the track: heading convention or unit wrong '
-           f'({suspect}), or surge/sway swapped ({labels["velocity"]}); legitimate only for '
-           f'a vessel moving sideways (then --accept-checks)')
     return Check(name, rms, expected, False, suspect, f'{figures} -> {why}', stats)
 
 
