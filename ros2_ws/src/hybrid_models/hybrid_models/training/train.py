@@ -64,17 +64,17 @@ def check_windows(cfg: dict, spec: VehicleSpec) -> None:
 
 def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
     """Train the configured model; returns the final checkpoint's config."""
+    if cfg['dataset'] is None:
+        raise ValueError('the config names no dataset (key "dataset" or --dataset)')
+    # Everything that can refuse the dataset runs before anything is written.
+    spec = dataset_vessel(cfg)
+    cfg = fill_from_vessel(cfg, spec)
+    check_windows(cfg, spec)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     tcfg = cfg['training']
     torch.set_num_threads(int(tcfg['threads']))
     torch.manual_seed(tcfg['seed'])
-    if cfg['dataset'] is None:
-        raise ValueError('the config names no dataset (key "dataset" or --dataset)')
-    spec = dataset_vessel(cfg)
-    cfg = fill_from_vessel(cfg, spec)
-    tcfg = cfg['training']
-    check_windows(cfg, spec)
     (out_dir / 'config.yaml').write_text(yaml.safe_dump(cfg, sort_keys=False))
     t_start = time.monotonic()
     train_runs = load_runs(cfg['dataset'], 'train', spec)
