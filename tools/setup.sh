@@ -70,7 +70,7 @@ deps_hash() { hash_files "$REQ"/*.txt "${BASH_SOURCE[0]}"; }
 deps_present() {
   "$VENV/bin/python" - <<'EOF' 2>/dev/null
 import importlib.util, sys
-needed = ['torch', 'rclpy', 'rosbags', 'colcon_core', 'pandas', 'ruff']
+needed = ['torch', 'rclpy', 'rosbags', 'colcon_core', 'pandas', 'ruff', 'shipmmg']
 sys.exit(any(importlib.util.find_spec(m) is None for m in needed))
 EOF
 }
@@ -113,6 +113,7 @@ stage_deps() {
   [ -f "$REQ/constraints.txt" ] && constraints=(-c "$REQ/constraints.txt")
   pip_install -r "$REQ/torch.txt"
   pip_install "${constraints[@]}" -r "$REQ/ros.txt" -r "$REQ/python.txt"
+  pip_install --no-deps -r "$REQ/reference.txt"
   echo "$want" >"$VENV/.deps-hash"
   rm -f "$VENV/.fixups-hash"
 }

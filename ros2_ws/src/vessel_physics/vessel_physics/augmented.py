@@ -44,6 +44,7 @@ import yaml
 from vessel_physics.arrays import namespace
 from vessel_physics.candidates import CANDIDATES
 from vessel_physics.errors import ConfigError, did_you_mean
+from vessel_physics.files import read_yaml
 from vessel_physics.params import VesselParams, config_dir, load_named_vessel, params_from_dict
 from vessel_physics.terms import DOFS, SIMULATOR_TERMS, TERMS, total_force
 
@@ -227,12 +228,7 @@ def load_physics(path: str | Path) -> Physics:
         path = path.with_suffix('.yaml')
     if not path.is_file() and not path.is_absolute() and (config_dir() / path).is_file():
         path = config_dir() / path
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f'{path}: cannot read physics file ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') from None
+    data = read_yaml(path, 'physics file')
     return physics_from_dict(data, path.resolve().parent, str(path))
 
 

@@ -36,9 +36,8 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from vessel_physics.errors import ConfigError, did_you_mean
+from vessel_physics.files import read_yaml
 from vessel_physics.params import VesselParams, config_dir, load_named_vessel
 
 __all__ = ['ConfigError', 'SimConfig', 'load_config', 'load_hook', 'default_config_path']
@@ -394,13 +393,7 @@ def load_config(source: str | Path | Mapping | None = None) -> SimConfig:
     else:
         path = Path(source)
         label, base = str(path), path.resolve().parent
-        try:
-            data = yaml.safe_load(path.read_text())
-        except OSError as exc:
-            raise ConfigError(f'{path}: cannot read config ({exc.strerror})') from None
-        except yaml.YAMLError as exc:
-            raise ConfigError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') \
-                from None
+        data = read_yaml(path, 'config')
         data = {} if data is None else data
     if not isinstance(data, Mapping):
         raise ConfigError(f'{label}: top level: expected a mapping of keys to values, got '

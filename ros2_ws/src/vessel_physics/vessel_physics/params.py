@@ -26,12 +26,10 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass, fields
-import math
 from pathlib import Path
 
-import yaml
-
-from vessel_physics.errors import ConfigError, did_you_mean
+from vessel_physics.errors import ConfigError
+from vessel_physics.files import check_ranges, numeric_fields, read_yaml
 
 GRAVITY = 9.81  # m/s^2, standard value used by the MSS navalvessel data
 
@@ -141,16 +139,7 @@ _POSITIVE = ('rho', 'm', 'displacement', 'GM', 'Ixx', 'Izz', 'Lpp', 'B', 'T',
 
 
 def _validated(params: VesselParams, source: str = 'vessel') -> VesselParams:
-    for key in _FLOAT_FIELDS:
-        value = getattr(params, key)
-        if not math.isfinite(value):
-            raise ConfigError(f'{source}: {key}: must be a finite number, got {value!r}')
-    for key in _POSITIVE:
-        if getattr(params, key) <= 0:
-            raise ConfigError(f'{source}: {key}: must be > 0, got {getattr(params, key)!r}')
-    if not 0 <= params.wake_fraction < 1:
-        raise ConfigError(f'{source}: wake_fraction: must be in [0, 1), got '
-                          f'{params.wake_fraction!r}')
+    check_ranges(params, _FLOAT_FIELDS, _POSITIVE, ('wake_fraction',), source)
     archimedes = params.rho * params.displacement
     if abs(params.m - archimedes) > MASS_TOLERANCE * params.m:
         raise ConfigError(f'{source}: m: must equal rho * displacement = {archimedes:.6g} kg '
@@ -160,37 +149,14 @@ def _validated(params: VesselParams, source: str = 'vessel') -> VesselParams:
 
 def params_from_dict(data: dict, source: str = 'vessel') -> VesselParams:
     """Build validated parameters from a mapping with exactly the dataclass's keys."""
-    if not isinstance(data, dict):
-        raise ConfigError(f'{source}: expected a mapping of parameter names to numbers, got '
-                          f'{type(data).__name__}')
-    known = {f.name for f in fields(VesselParams)}
-    for key in data:
-        if key not in known:
-            raise ConfigError(f'{source}: unknown parameter {key!r}'
-                              f'{did_you_mean(str(key), known)}')
-    missing = sorted(known - set(data))
-    if missing:
-        raise ConfigError(f'{source}: missing parameters {missing}')
-    values = {}
-    for key in _FLOAT_FIELDS:
-        value = data[key]
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
-            hint = ' (YAML reads 1e6 as text: write 1.0e+6)' if isinstance(value, str) else ''
-            raise ConfigError(f'{source}: {key}: must be a number, got {value!r}{hint}')
-        values[key] = float(value)
+    values = numeric_fields(data, (f.name for f in fields(VesselParams)), _FLOAT_FIELDS,
+                            source, 'parameters')
     return _validated(VesselParams(name=str(data['name']), **values), source)
 
 
 def load_vessel(path: str | Path) -> VesselParams:
     """Load and validate a vessel parameter YAML file."""
-    path = Path(path)
-    try:
-        data = yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f'{path}: cannot read vessel file ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') from None
-    return params_from_dict(data, source=str(path))
+    return params_from_dict(read_yaml(path, 'vessel file'), source=str(path))
 
 
 def config_dir() -> Path:
