@@ -84,9 +84,9 @@ def _physical_step(physical, dtype):
         bias = np.asarray(physical.bias.detach().double().numpy(), dtype)
         features = physical.features.array_features
         return lambda z, c: features(z, c) @ weight + bias
-    from hybrid_models.physical.first_principles import FirstPrinciplesModel
+    from hybrid_models.physical.integrated import IntegratedModel
 
-    if isinstance(physical, FirstPrinciplesModel):
+    if isinstance(physical, IntegratedModel):
         jax = _jax()
 
         def repeat(n, body, x):

@@ -1,10 +1,12 @@
 """
-Physical models: first-principles (Min, Pro), regression (Lin, Hyd, Qua), combinations.
+Physical models: first principles (Min, Pro, MMG), regression (Lin, Hyd, Qua), combinations.
 
 ``build_physical({'kind': 'pro+lin', ...}, spec)`` makes any of them; kinds are written
 like the paper's names in lower case: 'min', 'pro', 'lin', 'hyd', 'qua', 'min+lin', ...
 Kind 'physics' is the first-principles model of a physics file (``physics: PATH``), such
-as the augmented physics the diagnosis writes; 'physics+lin' etc. combine it too.
+as the augmented physics the diagnosis writes; 'physics+lin' etc. combine it too. Kind
+'mmg' is the MMG standard model of a 3-DOF single-screw, single-rudder ship
+(``hybrid_models.physical.mmg_model``).
 """
 
 from __future__ import annotations
@@ -15,7 +17,7 @@ from hybrid_models.physical.regression import RegressionModel
 from hybrid_models.vehicle import VehicleSpec
 
 REGRESSION_KINDS = ('lin', 'hyd', 'qua')
-FIRST_PRINCIPLES_KINDS = ('min', 'pro', 'physics')
+FIRST_PRINCIPLES_KINDS = ('min', 'pro', 'physics', 'mmg')
 
 __all__ = ['PhysicalModel', 'CompositeModel', 'RegressionModel', 'build_physical',
            'REGRESSION_KINDS', 'FIRST_PRINCIPLES_KINDS']
@@ -27,10 +29,11 @@ def build_physical(cfg: dict, spec: VehicleSpec) -> PhysicalModel:
 
     Keys: ``kind``; for regressions ``ridge`` (relative, default 1e-8) and ``masks``
     ('coupled' or 'diagonal', Hyd only); for first principles ``params`` (YAML path,
-    default the nominal vessel), ``vessel`` (parameter values, as stored in checkpoints;
-    they win over ``params``), ``physics`` (kind 'physics': a physics file's path or
-    mapping; ``physics_source`` where a stored mapping came from) and ``substeps`` (RK4
-    sub-steps per sample period).
+    default the file the vessel description names), ``vessel`` / ``mmg`` (parameter
+    values, as stored in checkpoints; they win over ``params``), ``physics`` (kind
+    'physics': a physics file's path or mapping; ``physics_source`` where a stored mapping
+    came from), ``terms`` (kind 'mmg': force groups) and ``substeps`` (RK4 sub-steps per
+    sample period).
     """
     kind = str(cfg.get('kind', '')).lower()
     parts = kind.split('+')
@@ -48,6 +51,11 @@ def build_physical(cfg: dict, spec: VehicleSpec) -> PhysicalModel:
     if fp_kind is None:
         return regression
     # Imported here so that regression-only models work without the vessel physics.
+    if fp_kind == 'mmg':
+        from hybrid_models.physical.mmg_model import build_mmg
+        fp = build_mmg(spec, params=cfg.get('params'), values=cfg.get('mmg'),
+                       substeps=int(cfg.get('substeps', 4)), terms=cfg.get('terms'))
+        return fp if regression is None else CompositeModel(fp, regression)
     from hybrid_models.physical.first_principles import build_first_principles
     fp = build_first_principles(fp_kind, spec, params=cfg.get('params'),
                                 substeps=int(cfg.get('substeps', 4)), vessel=cfg.get('vessel'),

@@ -23,13 +23,10 @@ from __future__ import annotations
 
 from dataclasses import asdict
 
-import torch
-
-from hybrid_models.physical.base import PhysicalModel
+from hybrid_models.physical.integrated import IntegratedModel
 from hybrid_models.vehicle import VehicleSpec, load_vessel
 from vessel_physics.arrays import namespace
 from vessel_physics.augmented import Physics, load_physics, physics_from_dict
-from vessel_physics.integrator import rk4_step
 from vessel_physics.mass import accelerations
 from vessel_physics.params import load_named_vessel, params_from_dict
 from vessel_physics.terms import MIN_TERMS, PRO_TERMS
@@ -41,12 +38,12 @@ PHYSICS_FAMILY_VESSEL = 'patrol_boat'
 ROLL_RATE, ROLL_ANGLE = 2, 4   # columns of z = [u, v, p, r, phi]
 
 
-class FirstPrinciplesModel(PhysicalModel):
+class FirstPrinciplesModel(IntegratedModel):
     """Named force terms, the mass matrix and RK4 sub-steps over one sample period."""
 
     def __init__(self, spec: VehicleSpec, kind: str, physics: Physics,
                  params_source: str, substeps: int = 4):
-        super().__init__(spec)
+        super().__init__(spec, substeps)
         family = load_vessel(PHYSICS_FAMILY_VESSEL)
         if (spec.state_names, spec.control_names) != (family.state_names,
                                                       family.control_names):
@@ -54,40 +51,14 @@ class FirstPrinciplesModel(PhysicalModel):
                              f'and c = {family.control_names}; vessel {spec.name!r} has '
                              f'{spec.state_names} and {spec.control_names}: use a '
                              f'regression physics (lin, hyd, qua)')
-        if substeps < 1:
-            raise ValueError(f'substeps must be >= 1, got {substeps}')
         self.kind, self.physics = kind, physics
         self.params, self.params_source = physics.params, params_source
-        self.substeps = int(substeps)
 
     def derivative(self, z, c):
         """Z' = [M^-1 tau(z, c), p] (FRD; m/s^2, rad/s^2, rad/s), on Array API arrays."""
         xp = namespace(z, c)
         acc = accelerations(self.physics.force(z, c), self.params)
         return xp.concat([acc, z[..., ROLL_RATE:ROLL_RATE + 1]], axis=-1)
-
-    def array_step(self, z, c, repeat=None):
-        """
-        Return the state one sample period later, on any Array API arrays.
-
-        The same code serves the torch model (with autograd) and the compiled forecast
-        engine (jax). ``repeat(n, body, x)`` applies ``body`` n times; the default is a
-        Python loop, the engine passes a compiled loop.
-        """
-        h = self.spec.dt / self.substeps
-
-        def body(x):
-            return rk4_step(lambda _t, s: self.derivative(s, c), 0.0, x, h)
-
-        if repeat is not None:
-            return repeat(self.substeps, body, z)
-        for _ in range(self.substeps):
-            z = body(z)
-        return z
-
-    def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
-        """State one sample period later."""
-        return self.array_step(z, c)
 
     @property
     def params_yaml(self) -> dict:
