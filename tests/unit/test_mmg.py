@@ -149,6 +149,9 @@ def test_regular_at_rest_with_autograd(published):
     assert torch.isfinite(acc).all() and torch.isfinite(z.grad).all()
     assert acc[0].abs().max() < 1e-6      # at rest, propeller stopped: no force
     assert acc[1, 0] > 0                  # bollard pull
+    biased = published.replace(Y_0=10.0, N_0=-5.0)
+    np.testing.assert_allclose(mmg.force(np.zeros(3), np.zeros(2), biased), [0.0, 10.0, -5.0],
+                               atol=1e-9)
 
 
 def test_bad_files_refused(tmp_path, published):

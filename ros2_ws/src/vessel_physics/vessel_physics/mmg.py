@@ -39,6 +39,7 @@ from vessel_physics.arrays import namespace
 from vessel_physics.errors import ConfigError
 from vessel_physics.files import check_ranges, numeric_fields, read_yaml
 from vessel_physics.integrator import rk4_step
+from vessel_physics.params import config_dir
 
 FORMAT = 'mmg-params/1'
 DOFS = ('X', 'Y', 'N')
@@ -119,6 +120,11 @@ class MmgParams:
     l_R: float          # effective rudder position for beta_R, non-dimensional
     gamma_R_plus: float   # flow straightening for beta_R > 0
     gamma_R_minus: float  # flow straightening for beta_R < 0
+    # Effects outside the standard method, as the diagnosis finds them (0 when absent)
+    delta_0: float      # rudder angle offset, rad: the rudder acts at delta + delta_0
+    X_0: float          # constant surge force, N
+    Y_0: float          # constant sway force, N
+    N_0: float          # constant yaw moment about midship, N m
 
     # ------------------------------------------------------------ dimensional values
     @property
@@ -186,6 +192,20 @@ def is_mmg_file(path: str | Path) -> bool:
     except ConfigError:
         return False
     return isinstance(data, dict) and data.get('format') == FORMAT
+
+
+def find_params_file(name: str | Path, base: Path | None = None) -> Path:
+    """Return an MMG parameter file given by path, beside ``base``, or packaged name."""
+    path = Path(name)
+    if not path.suffix:
+        path = path.with_suffix('.yaml')
+    candidates = [path] if path.is_absolute() else (
+        ([base / path] if base else []) + [path, config_dir() / path])
+    for candidate in candidates:
+        if candidate.is_file():
+            return candidate
+    raise ConfigError(f'mmg: no MMG parameter file {str(name)!r} (looked in '
+                      f'{", ".join(str(c.parent) for c in candidates)})')
 
 
 def load_mmg(path: str | Path) -> MmgParams:
@@ -269,7 +289,7 @@ def rudder_normal_force(z, c, params: MmgParams):
     """
     xp = namespace(z, c)
     u, v, r = z[..., 0], z[..., 1], z[..., 2]
-    delta = c[..., 1]
+    delta = c[..., 1] + params.delta_0
     n_rps = c[..., 0] / (2.0 * math.pi)
     speed = _speed(xp, u, v)
     u_a = (1.0 - wake_fraction(z, params)) * u
@@ -289,7 +309,7 @@ def rudder_normal_force(z, c, params: MmgParams):
 def rudder(z, c, params: MmgParams):
     """Rudder forces with hull interaction [X_R, Y_R, N_R] (..., 3)."""
     xp = namespace(z, c)
-    delta = c[..., 1]
+    delta = c[..., 1] + params.delta_0
     f_n = rudder_normal_force(z, c, params)
     lever = (params.x_R + params.a_H * params.x_H) * params.L_pp
     return xp.stack([-(1.0 - params.t_R) * f_n * xp.sin(delta),
@@ -312,7 +332,15 @@ def inertial(z, c, params: MmgParams):
                      -params.x_G * m * u * r], axis=-1)
 
 
-TERMS = {'inertial': inertial, 'hull': hull, 'propeller': propeller, 'rudder': rudder}
+def bias(z, c, params: MmgParams):
+    """Return the constant forces [X_0, Y_0, N_0] (..., 3), e.g. a diagnosed asymmetry."""
+    xp = namespace(z)
+    ones = xp.ones_like(z[..., 0])
+    return xp.stack([params.X_0 * ones, params.Y_0 * ones, params.N_0 * ones], axis=-1)
+
+
+TERMS = {'inertial': inertial, 'hull': hull, 'propeller': propeller, 'rudder': rudder,
+         'bias': bias}
 FULL_TERMS = tuple(TERMS)
 
 
@@ -374,6 +402,6 @@ def simulate(params: MmgParams, z0, controls, dt: float, substeps: int = 1,
 
 
 __all__ = ['DOFS', 'FORMAT', 'FULL_TERMS', 'MmgParams', 'STATE_NAMES', 'TERMS', 'WAKE_MODELS',
-           'derivative', 'force', 'hull', 'inertial', 'inverse_mass_matrix_t', 'is_mmg_file',
-           'load_mmg', 'params_from_dict', 'propeller', 'rudder', 'rudder_normal_force',
-           'simulate', 'wake_fraction']
+           'bias', 'derivative', 'find_params_file', 'force', 'hull', 'inertial',
+           'inverse_mass_matrix_t', 'is_mmg_file', 'load_mmg', 'params_from_dict', 'propeller',
+           'rudder', 'rudder_normal_force', 'simulate', 'wake_fraction']

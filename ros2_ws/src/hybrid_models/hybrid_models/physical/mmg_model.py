@@ -13,13 +13,12 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import asdict
-from pathlib import Path
 
 from hybrid_models.physical.integrated import IntegratedModel
 from hybrid_models.vehicle import VehicleSpec
 from vessel_physics import mmg
 from vessel_physics.arrays import namespace
-from vessel_physics.params import config_dir
+from vessel_physics.errors import ConfigError
 
 KIND = 'mmg'
 
@@ -33,19 +32,6 @@ def _control_columns(spec: VehicleSpec) -> tuple[int, int]:
                          f'{dict(zip(spec.actuator_names, kinds, strict=True))}')
     return (spec.control_index(spec.actuators[kinds.index('propeller')].name),
             spec.control_index(spec.actuators[kinds.index('rudder')].name))
-
-
-def resolve_params_file(name: str, base: Path | None = None) -> Path:
-    """Return the path of an MMG parameter file given by path or packaged name."""
-    path = Path(name)
-    if not path.suffix:
-        path = path.with_suffix('.yaml')
-    for candidate in ([path] if path.is_absolute() else
-                      ([base / path] if base else []) + [path, config_dir() / path]):
-        if candidate.is_file():
-            return candidate
-    raise ValueError(f'{KIND}: no MMG parameter file {name!r} (looked beside the vessel '
-                     f'file, in the working directory and in {config_dir()})')
 
 
 class MmgModel(IntegratedModel):
@@ -94,7 +80,10 @@ def build_mmg(spec: VehicleSpec, params: str | None = None, values: dict | None 
         raise ValueError(f'{KIND}: vessel {spec.name!r} names no MMG parameter file (key '
                          f'physics: in its vessel file); give model.physical.params')
     else:
-        path = resolve_params_file(source)
+        try:
+            path = mmg.find_params_file(source)
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
         if not mmg.is_mmg_file(path):
             raise ValueError(f'{KIND}: {path} is not an MMG parameter file (format: '
                              f'{mmg.FORMAT}); use min, pro or physics for 4-DOF hull files')
