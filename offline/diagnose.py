@@ -17,9 +17,16 @@ Exit status: 0 diagnosed (findings, or nothing significant missing), 1 unusable 
 (recordings, physics, settings), 2 usage error, 3 recordings too short or too little
 excited to diagnose (the report says why).
 
+For a vessel whose physics is the MMG standard model (its vessel file names an MMG
+parameter file, or --physics does), the diagnosis is the MMG family's: equation error on
+measured accelerations over a library of MMG coefficients and effects
+(vessel_diagnosis.mmg_family, settings config/mmg_diagnosis.yaml, --config to override);
+it writes report.md, findings.json and, when it improves held-out forecasts,
+augmented_mmg.yaml.
 For instance:
   diagnose.py --recordings data/ship --physics nominal_vessel.yaml --out out/diagnosis
   diagnose.py --recordings trial1/ trial2/ --physics my.yaml --out out/trial
+  diagnose.py --recordings datasets/kvlcc2 --out out/kvlcc2     # physics: the vessel file's
 """
 
 import argparse
@@ -29,6 +36,7 @@ import sys
 import time
 
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
+from vessel_diagnosis import mmg_family
 from vessel_diagnosis.findings import SCHEMA, STATUS
 from vessel_diagnosis.library import LibraryError, load_library
 from vessel_diagnosis.pipeline import InsufficientDataError, diagnose
@@ -46,9 +54,10 @@ def build_parser() -> argparse.ArgumentParser:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--recordings', nargs='+', required=True, metavar='BAGS_OR_DATASET',
                         help='dataset directories and/or rosbag2 recordings (MCAP)')
-    parser.add_argument('--physics', required=True, metavar='NOMINAL.yaml',
-                        help='nominal physics file (vessel_physics.augmented format) or a '
-                             'plain vessel parameter file (then every simulator term)')
+    parser.add_argument('--physics', metavar='NOMINAL.yaml',
+                        help='nominal physics file (vessel_physics.augmented format), a '
+                             'plain vessel parameter file (then every simulator term) or an '
+                             "MMG parameter file (default: the dataset's vessel file names it)")
     parser.add_argument('--out', required=True, metavar='REPORT_DIR',
                         help='directory for report.md, findings.json, figures, physics')
     parser.add_argument('--config', metavar='YAML',
@@ -84,6 +93,11 @@ def main(argv=None) -> int:
 
     out = Path(args.out)
     try:
+        if mmg_family.uses_mmg(args.recordings, args.physics):
+            return _diagnose_mmg(args, out, say)
+        if args.physics is None:
+            raise RecordingsError('--physics is required unless the recordings are a dataset '
+                                  'whose vessel file names an MMG parameter file')
         settings = load_settings(args.config)
         library = load_library(args.library)
         topic_map = topic_map_for(DIAGNOSED_VESSEL, args.topic_map) if args.topic_map \
@@ -103,6 +117,20 @@ def main(argv=None) -> int:
     if result['status'] == 'insufficient_excitation':
         print(f'{PROG}: cannot diagnose: {result["summary"]}', file=sys.stderr)
         return EXIT_INSUFFICIENT
+    return EXIT_OK
+
+
+def _diagnose_mmg(args, out: Path, say) -> int:
+    """Run the MMG family's diagnosis on one dataset; return the exit code."""
+    if len(args.recordings) != 1:
+        raise RecordingsError('the MMG diagnosis reads one dataset directory; convert the '
+                              'recordings into one (offline/bag_to_dataset.py)')
+    result = mmg_family.diagnose_mmg(args.recordings[0], out,
+                                     mmg_family.load_mmg_settings(args.config), args.physics,
+                                     say)
+    written = 'augmented_mmg.yaml written' if result['augmented_written'] else \
+        'no augmented file (no held-out improvement)'
+    print(f'found {result["verdict"]}; {written} ({out / "report.md"})')
     return EXIT_OK
 
 
