@@ -9,6 +9,7 @@ import torch
 from vessel_physics import mmg
 from vessel_physics.errors import ConfigError
 from vessel_physics.params import config_dir
+from vessel_physics.zigzag import zigzag
 
 shipmmg = pytest.importorskip('shipmmg.mmg_3dof', reason='shipmmg is the reference model')
 
@@ -77,28 +78,17 @@ def test_forces_equal_shipmmg(as_shipmmg):
     assert np.all(prop[:, 1:] == 0)
 
 
-def zigzag(p, angle_deg=10.0, seconds=60.0, dt=0.05, substeps=2):
-    """Closed-loop zig-zag of our model; return time, states, rudder and heading."""
-    angle, rate = math.radians(angle_deg), math.radians(15.8)
-    z, psi, delta, target = np.array([SERVICE_SPEED, 0.0, 0.0]), 0.0, 0.0, angle
-    n = REV_PER_S * 2 * math.pi
-    states, rudder, heading = [z], [delta], [psi]
-    for _ in range(int(round(seconds / dt))):
-        if (target > 0 and psi > angle) or (target < 0 and psi < -angle):
-            target = -target
-        delta += float(np.clip(target - delta, -rate * dt, rate * dt))
-        nxt = mmg.simulate(p, z, np.array([[n, delta]]), dt, substeps)[-1]
-        psi += 0.5 * dt * (z[2] + nxt[2])
-        z = nxt
-        states.append(z)
-        rudder.append(delta)
-        heading.append(psi)
-    t = np.arange(len(rudder)) * dt
-    return t, np.array(states), np.array(rudder), np.array(heading)
+def run_zigzag(p, angles_deg=(10.0,), seconds=60.0, dt=0.05, substeps=2):
+    """Closed-loop zig-zags of our model at Yasukawa & Yoshimura's approach condition."""
+    angles = np.radians(angles_deg)
+    ones = np.ones(len(angles))
+    return zigzag(p, SERVICE_SPEED * ones, REV_PER_S * 2 * math.pi * ones, angles, angles,
+                  math.radians(15.8), seconds, dt, substeps)
 
 
 def test_zigzag_equals_shipmmg(as_shipmmg):
-    t, states, rudder, heading = zigzag(as_shipmmg)
+    run = run_zigzag(as_shipmmg)
+    t, states, rudder, heading = run.t, run.z[0], run.delta[0], run.heading[0]
     basic, man = reference_params(as_shipmmg)
     sol = shipmmg.simulate_mmg_3dof(basic, man, t, rudder, np.full(t.size, REV_PER_S),
                                     u0=SERVICE_SPEED, ρ=as_shipmmg.rho, rtol=1e-9, atol=1e-11)
@@ -108,6 +98,19 @@ def test_zigzag_equals_shipmmg(as_shipmmg):
         scale = np.abs(states[:, i]).max()
         assert np.abs(ref[i] - states[:, i]).max() < 0.01 * scale
     assert abs(np.degrees(ref[5].max() - heading.max())) < 0.05   # first overshoot, deg
+
+
+def test_zigzags_run_as_a_batch_and_report_their_overshoots(published):
+    both = run_zigzag(published, (10.0, 20.0), seconds=80.0, dt=0.1, substeps=1)
+    alone = run_zigzag(published, (20.0,), seconds=80.0, dt=0.1, substeps=1)
+    np.testing.assert_allclose(both.z[1], alone.z[0], rtol=1e-12)
+    overshoots = both.overshoots()
+    assert overshoots.shape == (2, 2) and np.all(overshoots > 0)
+    assert overshoots[1, 0] > overshoots[0, 0]    # a larger check angle overshoots more
+    # The first is the heading's largest excursion beyond the check angle (IMO) before
+    # it swings back past the check angle on the other side.
+    back = int(np.flatnonzero(both.heading[0] < -math.radians(10.0))[0])
+    assert np.degrees(both.heading[0, :back].max()) - 10.0 == pytest.approx(overshoots[0, 0])
 
 
 def test_non_dimensional_units(published):
