@@ -13,9 +13,15 @@ Writes REPORT_DIR/report.md with PNG figures, REPORT_DIR/findings.json (every nu
 and, when something was found, augmented_physics.yaml, augmented_vessel.yaml and
 augmented_simulation.yaml. Progress goes to stderr, a one-line summary to stdout.
 
+Before anything is fitted, the recordings must fit the vessel file's scale (Froude
+number, turning rate, limits; --skip-scale-check overrides), and only candidates the
+vessel can have are tried (no wind without a wind sensor, no current in a basin, no roll
+terms without roll states). The augmented physics is written only when it forecasts the
+held-out recordings better.
+
 Exit status: 0 diagnosed (findings, or nothing significant missing), 1 unusable input
-(recordings, physics, settings), 2 usage error, 3 recordings too short or too little
-excited to diagnose (the report says why).
+(recordings, physics, settings, a vessel file of another scale), 2 usage error,
+3 recordings too short or too little excited to diagnose (the report says why).
 
 For a vessel whose physics is the MMG standard model (its vessel file names an MMG
 parameter file, or --physics does), the diagnosis is the MMG family's: equation error on
@@ -36,11 +42,13 @@ import sys
 import time
 
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
+from vessel_description import VesselError, load_vessel
 from vessel_diagnosis import mmg_family
 from vessel_diagnosis.findings import SCHEMA, STATUS
 from vessel_diagnosis.library import LibraryError, load_library
 from vessel_diagnosis.pipeline import InsufficientDataError, diagnose
 from vessel_diagnosis.recordings import DIAGNOSED_VESSEL, RecordingsError
+from vessel_diagnosis.scale import ScaleError
 from vessel_diagnosis.settings import SettingsError, config_dir, load_settings
 from vessel_physics.errors import ConfigError
 
@@ -66,6 +74,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help=f'candidate library (default {config_dir() / "library.yaml"})')
     parser.add_argument('--topic-map', metavar='YAML',
                         help="topic map for recordings (default: the simulator's topics)")
+    parser.add_argument('--vessel', metavar='NAME_OR_FILE',
+                        help='vessel file the recordings come from (default: the one the '
+                             'datasets carry; for bags the one their topic map is for)')
+    parser.add_argument('--skip-scale-check', action='store_true',
+                        help="diagnose even when the recordings' speeds and turns do not "
+                             "fit the vessel file's length and limits")
     parser.add_argument('--quiet', action='store_true', help='no progress on stderr')
     return parser
 
@@ -102,12 +116,15 @@ def main(argv=None) -> int:
         library = load_library(args.library)
         topic_map = topic_map_for(DIAGNOSED_VESSEL, args.topic_map) if args.topic_map \
             else None
-        result = diagnose(args.recordings, args.physics, out, settings, library, topic_map, say)
+        vessel = load_vessel(args.vessel) if args.vessel else None
+        result = diagnose(args.recordings, args.physics, out, settings, library, topic_map, say,
+                          vessel, not args.skip_scale_check)
     except InsufficientDataError as exc:
         _insufficient(out, str(exc))
         print(f'{PROG}: cannot diagnose: {exc}', file=sys.stderr)
         return EXIT_INSUFFICIENT
-    except (RecordingsError, ConfigError, SettingsError, LibraryError, TopicMapError) as exc:
+    except (RecordingsError, ConfigError, SettingsError, LibraryError, TopicMapError,
+            VesselError, ScaleError) as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)
         return EXIT_INPUT
     except OSError as exc:
@@ -127,7 +144,7 @@ def _diagnose_mmg(args, out: Path, say) -> int:
                               'recordings into one (offline/bag_to_dataset.py)')
     result = mmg_family.diagnose_mmg(args.recordings[0], out,
                                      mmg_family.load_mmg_settings(args.config), args.physics,
-                                     say)
+                                     say, not args.skip_scale_check)
     written = 'augmented_mmg.yaml written' if result['augmented_written'] else \
         'no augmented file (no held-out improvement)'
     print(f'found {result["verdict"]}; {written} ({out / "report.md"})')

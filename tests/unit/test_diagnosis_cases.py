@@ -87,7 +87,10 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
     identified('fouling')
     data = identified.data('fouling')
     settings = load_settings(overrides={
-        'selection': {'bootstrap': 50, 'rounds': 2}, 'evaluation': {'calibration_s': 60},
+        'selection': {'bootstrap': 50, 'rounds': 2},
+        # 6-minute runs: forecasts short enough to fit after the calibration span, so that
+        # the held-out forecasts can show that the augmented physics earns its file.
+        'evaluation': {'calibration_s': 60, 'horizon': 200, 'stride': 40},
         'excitation': {'min_duration_s': 600}})
     result = diagnose([data], data / 'nominal_physics.yaml', tmp_path, settings)
     on_disk = json.loads((tmp_path / 'findings.json').read_text())
@@ -97,6 +100,10 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
         assert FINDING_FIELDS <= set(finding)
     assert set(result['metrics']['one_step_rmse']) == {'nominal', 'augmented'}
     assert result['metrics']['improvement']['one_step_rmse']['u'] > 0
+    verdict = result['augmented_verdict']
+    assert verdict['written'] and verdict['trajectory_gain'] >= (
+        settings.evaluation.min_trajectory_gain)
+    assert result['augmented_physics']['physics'] == 'augmented_physics.yaml'
     assert {'summary', 'maps', 'ranking', 'windows'} <= set(result['locate'])
     physics = load_physics(tmp_path / 'augmented_physics.yaml')
     for finding in result['findings']:
@@ -107,6 +114,8 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
             term = next(t for t in physics.extra_terms if t.info['candidate'] == finding['term'])
             assert term.coefficient == pytest.approx(finding['coefficient'])
     report = (tmp_path / 'report.md').read_text()
+    assert verdict['sentence'] in report and 'forecasts the held-out runs better' in report
+    assert 'Vessel: `patrol_boat`' in report and 'Scale check: Froude number' in report
     for heading in ('## 1. Where', '## 2. What is missing', '## 3. Augmented physics',
                     '## 4. Before and after'):
         assert heading in report

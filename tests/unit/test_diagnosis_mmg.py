@@ -19,10 +19,11 @@ import pytest
 import yaml
 
 from offline import diagnose
-from vessel_datasets.format import write_dataset
+from vessel_datasets.format import read_dataset, write_dataset
 from vessel_description import load_vessel, parse_vessel
 from vessel_diagnosis import mmg_family
 from vessel_diagnosis.recordings import RecordingsError
+from vessel_diagnosis.scale import ScaleError
 from vessel_diagnosis.settings import config_dir
 from vessel_physics import mmg
 
@@ -169,3 +170,14 @@ def test_wind_sensor_changes_the_reason_not_the_exclusion():
     data['environment'] = ['wind']
     reasons = mmg_family.excluded_categories(parse_vessel(data))
     assert 'no wind-load candidates' in reasons['wind']
+
+
+def test_a_full_scale_vessel_file_is_refused_on_model_scale_recordings(dataset, tmp_path):
+    data = TANKER.to_dict()
+    data['particulars'] = {**data['particulars'], 'length_m': 320.0}   # the real KVLCC2
+    ship_scale = tmp_path / 'ds'
+    runs = {run_id: read_dataset(dataset).load(run_id) for run_id in read_dataset(dataset)
+            .run_ids()}
+    write_dataset(ship_scale, runs, vessel=parse_vessel(data), provenance={})
+    with pytest.raises(ScaleError, match='turns of'):
+        mmg_family.diagnose_mmg(ship_scale, tmp_path / 'out')

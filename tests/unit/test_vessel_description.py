@@ -57,6 +57,7 @@ def test_round_trip_through_a_manifest_or_checkpoint():
     (lambda d: d['actuators'].update(u={'kind': 'other', 'unit': '1', 'range': [0, 1]}),
      'clash with states'),
     (lambda d: d.update(environment=['rain']), 'environment must list'),
+    (lambda d: d.update(waters='tank'), "waters must be one of ['open', 'basin']"),
     (lambda d: d.update(particulars={'beam_m': 1.0}), 'at least length_m'),
     (lambda d: d.update(limits={'phi': [-1, 1]}), 'not a state of this vessel'),
     (lambda d: d.update(windows_s=3), "unknown keys ['windows_s']"),
@@ -69,6 +70,15 @@ def test_malformed_descriptions_give_one_line(edit, message):
         parse_vessel(data, 'test.yaml')
     assert message in str(info.value) and 'test.yaml' in str(info.value)
     assert '\n' not in str(info.value)
+
+
+def test_waters_default_to_open_and_tank_vessels_say_basin():
+    assert parse_vessel(SMALL).waters == 'open'
+    assert load_vessel('patrol_boat').waters == 'open'
+    for name in ('kvlcc2_hsva', 'snuboat'):
+        vessel = load_vessel(name)
+        assert vessel.waters == 'basin'
+        assert parse_vessel(vessel.to_dict()).waters == 'basin'   # survives a manifest
 
 
 def test_checkpoint_or_dataset_for_another_vessel_is_refused():

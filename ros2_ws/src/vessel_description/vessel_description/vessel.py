@@ -25,17 +25,27 @@ from typing import Any
 import yaml
 
 from .resources import data_dir
-from .vocabulary import ACTUATOR_KINDS, ENVIRONMENT, PLANAR_STATES, POSE, ROLL_STATES, STATES
+from .vocabulary import (
+    ACTUATOR_KINDS,
+    ENVIRONMENT,
+    PLANAR_STATES,
+    POSE,
+    ROLL_STATES,
+    STATES,
+    WATERS,
+)
 
 FORMAT = 'vessel-description/1'
 VESSELS_DIR = 'vessels'
 _NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 TOP_KEYS = ('format', 'name', 'description', 'rate_hz', 'window_s', 'horizon_s', 'states',
-            'limits', 'actuators', 'environment', 'particulars', 'physics', 'recordings')
+            'limits', 'actuators', 'environment', 'waters', 'particulars', 'physics',
+            'recordings')
 REQUIRED_KEYS = ('name', 'rate_hz', 'window_s', 'horizon_s', 'states', 'actuators',
                  'particulars')
 ACTUATOR_KEYS = ('kind', 'unit', 'range', 'description')
 RECORDING_KINDS = ('topics', 'columns')
+DEFAULT_WATERS = 'open'   # a vessel file that says nothing sails where currents can act
 
 
 class VesselError(ValueError):
@@ -71,6 +81,7 @@ class Vessel:
     recordings: Mapping[str, Any] = field(default_factory=dict)
     description: str = ''
     source: str = '<inline>'
+    waters: str = DEFAULT_WATERS
 
     # ------------------------------------------------------------- vector contract
     @property
@@ -200,6 +211,7 @@ class Vessel:
                            'range': [a.low, a.high], 'description': a.description}
                           for a in self.actuators],
             'environment': list(self.environment),
+            'waters': self.waters,
             'particulars': dict(self.particulars),
             'physics': self.physics,
             'recordings': copy.deepcopy(dict(self.recordings)),
@@ -243,6 +255,9 @@ def parse_vessel(data: Any, source: str = '<inline>') -> Vessel:
         raise VesselError(f'{where}: actuator names {clash} repeat or clash with states, '
                           f'pose or time')
     particulars = _particulars(data['particulars'], where)
+    waters = data.get('waters', DEFAULT_WATERS)
+    if waters not in WATERS:
+        raise VesselError(f'{where}: waters must be one of {list(WATERS)}, got {waters!r}')
     limits = _limits(data.get('limits') or {}, states, where)
     physics = data.get('physics')
     if physics is not None and not isinstance(physics, str):
@@ -254,7 +269,8 @@ def parse_vessel(data: Any, source: str = '<inline>') -> Vessel:
     return Vessel(name=name, rate_hz=rate, window_s=window_s, horizon_s=horizon_s,
                   states=states, actuators=actuators, environment=environment,
                   particulars=particulars, limits=limits, physics=physics,
-                  recordings=plain(recordings), description=str(description), source=source)
+                  recordings=plain(recordings), description=str(description), source=source,
+                  waters=waters)
 
 
 def _positive(value: Any, where: str) -> float:

@@ -46,3 +46,10 @@ ENVIRONMENT: dict[str, tuple[tuple[str, str, str], ...]] = {
         ('wind_dir_sin', '1', 'sin of that angle (wind from starboard +)'),
     ),
 }
+
+# Where a vessel's recordings come from: ``open`` water (wind, waves and currents can act)
+# or a ``basin`` (towing tank, model basin: still water, no current).
+WATERS: dict[str, str] = {
+    'open': 'open water: the sea or a lake, where currents can act',
+    'basin': 'a towing tank or model basin: still water, no current',
+}

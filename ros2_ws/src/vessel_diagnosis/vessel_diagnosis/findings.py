@@ -178,6 +178,39 @@ def summary_line(status: str, records: Sequence[dict], missing: Sequence[str],
             + '. Record manoeuvres: speed changes, turns both ways, different headings.')
 
 
+def augmented_verdict(metrics: Mapping | None, ev) -> dict:
+    """
+    Return whether the augmented physics earns its file on the held-out forecasts.
+
+    Written when the mean 900-step trajectory error drops by at least
+    ``ev.min_trajectory_gain`` and no state's forecast RMSE grows by more than
+    ``ev.max_state_loss`` (relative); the record carries the figures and one sentence.
+    """
+    imp = (metrics or {}).get('improvement') or {}
+    trajectory, per_state = imp.get('trajectory'), imp.get('forecast_rmse') or {}
+    out = {'written': False, 'trajectory_gain': trajectory, 'forecast_rmse_gain': per_state,
+           'min_trajectory_gain': ev.min_trajectory_gain, 'max_state_loss': ev.max_state_loss}
+    if trajectory is None:
+        out['sentence'] = ('The augmented physics was not written: there are no held-out '
+                           'forecasts to show that it predicts better.')
+        return out
+    gains = {s: g for s, g in per_state.items() if g is not None}
+    worst = min(gains, key=gains.get) if gains else None
+    traj = metrics['forecast']
+    figures = (f'held-out trajectory error {traj["nominal"]["trajectory"]["mean"]:.3g} -> '
+               f'{traj["augmented"]["trajectory"]["mean"]:.3g} m ({-100 * trajectory:+.0f} %)'
+               + (f', worst state {worst} RMSE {-100 * gains[worst]:+.0f} %' if worst else ''))
+    out['written'] = bool(trajectory >= ev.min_trajectory_gain and (
+        worst is None or gains[worst] >= -ev.max_state_loss))
+    out['sentence'] = (f'The augmented physics forecasts the held-out runs better and was '
+                       f'written: {figures}.' if out['written'] else
+                       f'The augmented physics was not written: it does not forecast the '
+                       f'held-out runs better ({figures}; it needs the trajectory error '
+                       f'{-100 * ev.min_trajectory_gain:+.0f} % or less and no state above '
+                       f'{100 * ev.max_state_loss:+.0f} %).')
+    return out
+
+
 def augmented_physics(ident: Identification, records: Sequence[dict], nominal: Physics
                       ) -> Physics:
     """Return the nominal physics plus the kept terms, with their statistics as information."""

@@ -151,6 +151,23 @@ def _candidate_probability(columns: Sequence[Column], pi: np.ndarray, selected: 
     return out, per_run
 
 
+def rms_speed_interval(boot: np.ndarray, estimate: np.ndarray) -> tuple[float, float]:
+    """
+    Return the 95 % interval of the RMS current speed over the runs (m/s).
+
+    ``boot`` (B, 2 R) holds bootstrap (north, east) components of the R runs, ``estimate``
+    (2 R,) the estimated ones. The bootstrap noise adds to every squared speed, so the
+    replicates' squared RMS speeds lie above the estimate's by the noise variance; that
+    bias (their mean minus the estimate's) is removed before taking percentiles, or a
+    current small against its uncertainty would get an interval above its estimate.
+    """
+    squares = np.mean(boot ** 2, axis=1) * 2.0
+    estimate_square = float(np.mean(np.square(estimate)) * 2.0)
+    centred = squares - (squares.mean() - estimate_square)
+    low, high = np.percentile(centred, [2.5, 97.5])
+    return float(np.sqrt(max(low, 0.0))), float(np.sqrt(max(high, 0.0)))
+
+
 class Identifier:
     """Runs the rounds, refits and pruning of the module docstring on one set of runs."""
 
@@ -194,16 +211,19 @@ class Identifier:
                                                       model.selected_)
         return design, model, probability, per_run
 
-    def refit(self, segments: Segments, point: Point, names: Sequence[str]
-              ) -> tuple[Point, Design]:
+    def refit(self, segments: Segments, point: Point, names: Sequence[str],
+              iterations: int | None = None) -> tuple[Point, Design]:
         """
         Refit the coefficients of ``names`` (and per-run currents) by Gauss-Newton.
 
-        Returns the new point and the design of ``names`` at it.
+        At most ``iterations`` steps (default: the settings' per-round number). Returns
+        the new point and the design of ``names`` at it.
         """
         columns = self._columns(segments.run_ids, names)
         design = self._design(segments, point, columns)
-        for _ in range(self.settings.selection.gauss_newton_iterations):
+        if iterations is None:
+            iterations = self.settings.selection.gauss_newton_iterations
+        for _ in range(iterations):
             X, y, _ = design.stacked()
             before = float(y @ y)
             norm = np.sqrt(np.mean(X ** 2, axis=0))
@@ -329,7 +349,15 @@ class Identifier:
         return out
 
     def intervals(self, design: Design, segments: Segments, point: Point):
-        """Block-bootstrap refits (B, K) of the design's coefficients around ``point``."""
+        """
+        Block-bootstrap coefficients (B, K) of the design's columns around ``point``.
+
+        A replicate refits the model linearized at ``point`` on resampled blocks; how far
+        that refit lands from the same refit on all the data is how far the estimate moves
+        with the data. Adding the replicate's refit itself to ``point`` would centre the
+        interval one Gauss-Newton step beyond ``point`` wherever the nonlinear refit
+        stopped short of its optimum, and the interval could miss its own estimate.
+        """
         cfg = self.settings.selection
         X, y, blocks = design.stacked()
         norm = np.sqrt(np.mean(X ** 2, axis=0))
@@ -337,9 +365,10 @@ class Identifier:
         stats = BlockStats(X / norm, y, blocks, _strata(design, segments))
         rng = np.random.default_rng(cfg.seed)
         support = np.ones(X.shape[1], bool)
+        full = least_squares(*stats.total()[:2], support)
         boot = np.array([least_squares(*stats.total(stats.resample(rng))[:2], support)
-                         for _ in range(cfg.bootstrap)]) / norm
-        return point.values(design.columns)[None, :] + boot
+                         for _ in range(cfg.bootstrap)])
+        return point.values(design.columns)[None, :] + (boot - full[None, :]) / norm
 
     def aliases(self, segments: Segments, point: Point, names: Sequence[str]
                 ) -> dict[str, list[Alias]]:
@@ -482,6 +511,10 @@ class Identifier:
         speed_ci = None
         aliases: dict[str, list[Alias]] = {}
         if kept:
+            # The reported coefficients are the converged refit, which the intervals
+            # describe; the rounds' few iterations are only a start.
+            point, design = self.refit(segments, point, kept,
+                                       cfg.final_gauss_newton_iterations)
             columns = design.columns
             boot = self.intervals(design, segments, point)
             for name in kept:
@@ -492,8 +525,7 @@ class Identifier:
                         ci = current_ci.setdefault(col.run, np.zeros((2, 2)))
                         ci[0 if col.component == 'north' else 1] = np.percentile(
                             boot[:, k], [2.5, 97.5])
-                    speeds = np.sqrt(np.mean(boot[:, idx] ** 2, axis=1) * 2.0)
-                    speed_ci = tuple(float(v) for v in np.percentile(speeds, [2.5, 97.5]))
+                    speed_ci = rms_speed_interval(boot[:, idx], point.values(columns)[idx])
                 else:
                     ci95[name] = tuple(float(v) for v in np.percentile(boot[:, idx[0]],
                                                                        [2.5, 97.5]))

@@ -29,8 +29,9 @@ import yaml
 
 from vessel_datasets.format import DatasetError, read_dataset, split_runs
 from vessel_diagnosis.recordings import RecordingsError
+from vessel_diagnosis.scale import check_scale, scale_figures
 from vessel_diagnosis.selection import BootstrapLasso, effective_sample_ratio
-from vessel_diagnosis.settings import SettingsError, config_dir
+from vessel_diagnosis.settings import SettingsError, config_dir, load_settings
 from vessel_physics import mmg
 from vessel_physics.errors import ConfigError
 from vessel_physics.files import read_yaml
@@ -325,12 +326,20 @@ def verdict(found: Mapping[str, dict], settings: MmgSettings) -> str:
 
 def diagnose_mmg(dataset: str | Path, out: str | Path, settings: MmgSettings | None = None,
                  params_file: str | Path | None = None,
-                 say: Callable[[str], None] | None = None) -> dict:
-    """Run the MMG-family diagnosis on a dataset; write findings.json and report.md."""
+                 say: Callable[[str], None] | None = None, scale_check: bool = True) -> dict:
+    """
+    Run the MMG-family diagnosis on a dataset; write findings.json and report.md.
+
+    The recordings' scale is checked against the vessel file first (the thresholds of
+    ``scale_check`` in diagnosis.yaml); ``scale_check=False`` only records the figures.
+    """
     say = say or (lambda message: None)
     settings = settings or load_mmg_settings()
     out = Path(out)
     vessel, nominal, source, runs = load_mmg_runs(dataset, params_file)
+    cfg = load_settings().scale_check
+    scale = (check_scale if scale_check else scale_figures)(runs, vessel, cfg,
+                                                            mmg.STATE_NAMES)
     dt = 1.0 / vessel.rate_hz
     diag, held, how = held_out(runs)
     excluded = excluded_categories(vessel)
@@ -349,6 +358,7 @@ def diagnose_mmg(dataset: str | Path, out: str | Path, settings: MmgSettings | N
         'family': 'mmg', 'vessel': vessel.name, 'nominal_physics': source,
         'recordings': {'dataset': str(dataset), 'diagnosis_runs': [r.run_id for r in diag],
                        'held_out_runs': [r.run_id for r in held], 'held_out_how': how},
+        'scale_check': {**scale, 'checked': scale_check},
         'excluded': excluded, 'candidates_tried': names,
         'identification': ident, 'verdict': verdict(ident['candidates'], settings),
         'held_out_forecast_rmse': {'horizon_s': horizon * dt, 'nominal': before,
@@ -383,7 +393,12 @@ def report(result: Mapping, settings: MmgSettings) -> str:
              f'Nominal physics: `{result["nominal_physics"]}`. Held out: '
              f'{", ".join(result["recordings"]["held_out_runs"])} '
              f'({result["recordings"]["held_out_how"]}).', '',
-             f'**Found: {result["verdict"]}.**', '', '## What cannot exist here', '']
+             f'**Found: {result["verdict"]}.**', '',
+             f'Scale: Froude number {result["scale_check"]["froude"]:.2f} and turning rate '
+             f'r L / U {result["scale_check"]["turning_rate"]:.2f} for length_m '
+             f'{result["scale_check"]["length_m"]:g}'
+             f'{"" if result["scale_check"]["checked"] else " (check skipped)"}.', '',
+             '## What cannot exist here', '']
     lines += [f'- {category}: {why}' for category, why in result['excluded'].items()]
     lines += ['', '## Candidates', '',
               f'Prediction error over {ident["segment_s"]:g} s from measured states, RMS '

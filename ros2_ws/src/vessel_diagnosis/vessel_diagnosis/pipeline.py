@@ -2,9 +2,11 @@
 The whole diagnosis: locate, name, model, show; one call, one findings mapping.
 
 ``diagnose(recordings, physics, out)`` reads the recordings and the nominal physics,
-holds some recordings out, locates the mismatch, identifies the missing terms, writes the
-augmented physics, evaluates nominal and augmented physics on the held-out recordings and
-writes findings.json, report.md and the figures into ``out``. It returns the findings
+checks that the recordings fit the vessel file's scale, keeps the candidates the vessel
+can have, holds some recordings out, locates the mismatch, identifies the missing terms,
+evaluates nominal and augmented physics on the held-out recordings, writes the augmented
+physics when it forecasts them better, and writes findings.json, report.md and the
+figures into ``out``. It returns the findings
 mapping; its ``status`` says what the CLI's exit code should be.
 """
 
@@ -18,12 +20,15 @@ import time
 
 import numpy as np
 
+from vessel_description import Vessel
+from vessel_diagnosis.admissible import admissible
 from vessel_diagnosis.design import Segments, make_segments
 from vessel_diagnosis.evaluate import evaluate
 from vessel_diagnosis.findings import (
     SCHEMA,
     STATUS,
     augmented_physics,
+    augmented_verdict,
     candidate_records,
     category_table,
     excitation_verdict,
@@ -43,8 +48,15 @@ from vessel_diagnosis.locate import (
     state_summary,
     window_count,
 )
-from vessel_diagnosis.recordings import Run, load_recordings, signal_ranges, split_holdout
+from vessel_diagnosis.recordings import (
+    Run,
+    load_recordings,
+    recordings_vessel,
+    signal_ranges,
+    split_holdout,
+)
 from vessel_diagnosis.report import write_report
+from vessel_diagnosis.scale import check_scale, scale_figures
 from vessel_diagnosis.settings import Settings, load_settings
 from vessel_physics.augmented import Physics, load_physics
 
@@ -129,8 +141,14 @@ def _clean(value):
 
 def diagnose(recordings: Sequence[str | Path], physics: str | Path, out: str | Path,
              settings: Settings | None = None, library: Library | None = None,
-             topic_map=None, say: Callable[[str], None] | None = None) -> dict:
-    """Run the diagnosis and write REPORT_DIR; return the findings mapping."""
+             topic_map=None, say: Callable[[str], None] | None = None,
+             vessel: Vessel | None = None, scale_check: bool = True) -> dict:
+    """
+    Run the diagnosis and write REPORT_DIR; return the findings mapping.
+
+    ``vessel``: the description the recordings come from (default: the one the datasets
+    carry); ``scale_check=False`` skips the refusal of recordings that do not fit its scale.
+    """
     say = say or (lambda message: None)
     settings = settings or load_settings()
     library = library or load_library()
@@ -139,6 +157,11 @@ def diagnose(recordings: Sequence[str | Path], physics: str | Path, out: str | P
     start = time.perf_counter()
     say('reading the recordings')
     runs = load_recordings(recordings, topic_map)
+    vessel = recordings_vessel(recordings, vessel)
+    # Before anything is fitted: a vessel file of another scale makes every fit absurd.
+    scale = (check_scale(runs, vessel, settings.scale_check) if scale_check
+             else scale_figures(runs, vessel, settings.scale_check))
+    library, excluded = admissible(library, vessel)
     nominal: Physics = load_physics(physics)
     ev = settings.evaluation
     diag, held, how = split_holdout(runs, ev.holdout_fraction, ev.holdout_seed)
@@ -148,6 +171,12 @@ def diagnose(recordings: Sequence[str | Path], physics: str | Path, out: str | P
                        'hours': _hours(runs), 'diagnosis_runs': [r.run_id for r in diag],
                        'diagnosis_hours': _hours(diag), 'held_out_runs': [r.run_id for r in held],
                        'held_out_how': how, 'rate_hz': 1.0 / runs[0].dt},
+        'vessel': {'name': vessel.name, 'source': vessel.source,
+                   'environment': list(vessel.environment), 'waters': vessel.waters,
+                   'states': list(vessel.states), 'length_m': vessel.length_m},
+        'scale_check': {**scale, 'checked': scale_check},
+        'excluded': [e.to_dict() for e in excluded],
+        'excluded_lines': [e.line() for e in excluded],
         'nominal_physics': {'source': str(physics), 'vessel': nominal.params.name,
                             'terms': list(nominal.terms),
                             'extra_terms': [t.to_dict() for t in nominal.extra_terms]},
@@ -197,15 +226,7 @@ def diagnose(recordings: Sequence[str | Path], physics: str | Path, out: str | P
         'locate': locate,
     })
 
-    aug = None
-    if records:
-        say('modelling: writing the augmented physics')
-        aug = augmented_physics(ident, records, nominal)
-        out.mkdir(parents=True, exist_ok=True)
-        result['augmented_physics'] = write_augmented(out, aug, records, str(physics))
-    else:
-        result['augmented_physics'] = None
-
+    aug = augmented_physics(ident, records, nominal) if records else None
     t0 = time.perf_counter()
     if held and aug is not None:
         say(f'showing: nominal and augmented physics on {len(held)} held-out runs')
@@ -230,6 +251,15 @@ def diagnose(recordings: Sequence[str | Path], physics: str | Path, out: str | P
         result['metrics']['horizon'] = ev.horizon
     else:
         result['metrics'] = None
+    verdict = augmented_verdict(result['metrics'], ev) if aug is not None else None
+    result['augmented_verdict'] = verdict
+    result['augmented_physics'] = None
+    if verdict is not None:
+        result['summary'] += ' ' + verdict['sentence']
+        if verdict['written']:
+            say('modelling: writing the augmented physics')
+            out.mkdir(parents=True, exist_ok=True)
+            result['augmented_physics'] = write_augmented(out, aug, records, str(physics))
     timing['show'] = time.perf_counter() - t0
     timing['total'] = time.perf_counter() - start
     result['timing_s'] = timing

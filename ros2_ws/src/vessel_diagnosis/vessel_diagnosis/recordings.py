@@ -18,7 +18,7 @@ import pandas as pd
 
 from vessel_datasets.format import MANIFEST, DatasetError, read_dataset, split_runs
 from vessel_datasets.topic_map import topic_map_for
-from vessel_description import VesselError, load_vessel
+from vessel_description import Vessel, VesselError, load_vessel
 
 # The diagnosis' physics family is the 4-DOF patrol-boat model (vessel_physics), so it
 # diagnoses recordings with that vessel's vectors; others are refused with one line.
@@ -142,6 +142,35 @@ def load_recordings(paths: Iterable[str | Path], topic_map=None) -> list[Run]:
         raise RecordingsError(f'runs have different sample rates {sorted(rates)} Hz; '
                               f'convert them at one rate')
     return runs
+
+
+def recordings_vessel(paths: Iterable[str | Path], given: Vessel | None = None) -> Vessel:
+    """
+    Return the vessel description the recordings come from.
+
+    ``given`` (offline/diagnose.py --vessel) when set, else the description the datasets
+    carry; bags carry none and are read with the diagnosed vessel's topic map, so its
+    description is theirs. It must have the diagnosed vessel's vectors and rate.
+    """
+    found: dict[str, Vessel] = {}
+    if given is None:
+        for path in map(Path, paths):
+            if (path / MANIFEST).is_file():
+                vessel = read_dataset(path).vessel
+                found.setdefault(repr(vessel.to_dict()), vessel)
+            else:
+                found.setdefault(repr(DIAGNOSED_VESSEL.to_dict()), DIAGNOSED_VESSEL)
+        if len(found) > 1:
+            raise RecordingsError('the recordings carry different vessel descriptions ('
+                                  + ', '.join(v.source for v in found.values())
+                                  + '); name the one they come from with --vessel')
+        given = next(iter(found.values()), DIAGNOSED_VESSEL)
+    try:
+        DIAGNOSED_VESSEL.check_compatible(given, 'the vessel file')
+    except VesselError as exc:
+        raise RecordingsError(f"{exc}; the diagnosis models the patrol boat's physics "
+                              f'only') from None
+    return given
 
 
 def split_holdout(runs: Sequence[Run], fraction: float, seed: int

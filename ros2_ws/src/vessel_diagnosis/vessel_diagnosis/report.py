@@ -243,11 +243,32 @@ def _header(result: dict) -> list[str]:
              f'{len(rec["diagnosis_runs"])} runs ({rec["diagnosis_hours"]:.2f} h), held out '
              f'{len(rec["held_out_runs"])} ({rec["held_out_how"]}). Run time '
              f'{result["timing_s"]["total"]:.0f} s.', '']
+    lines += _vessel_lines(result)
     missing = result.get('excitation', {}).get('not_checkable')
     if missing:
         lines += [f'Not checkable with these recordings (no candidate of the category can be '
                   f'told from the other categories): {", ".join(missing)}.', '']
     return lines
+
+
+def _vessel_lines(result: dict) -> list[str]:
+    """Return what the vessel file admits: its scale check and the candidates left out."""
+    vessel, scale = result.get('vessel'), result.get('scale_check')
+    if not vessel:
+        return []
+    lines = [f'Vessel: `{vessel["name"]}` ({vessel["source"]}): states '
+             f'{", ".join(vessel["states"])}; environment '
+             f'{", ".join(vessel["environment"]) or "none"}; waters {vessel["waters"]}; '
+             f'length {vessel["length_m"]:g} m.']
+    if scale:
+        lines[0] += (f' Scale check{"" if scale["checked"] else " (skipped)"}: Froude number '
+                     f'{scale["froude"]:.2f}, turning rate r L / U {scale["turning_rate"]:.2f} '
+                     f'({100 * scale["quantile"]:g} % quantiles).')
+    excluded = result.get('excluded_lines') or []
+    if excluded:
+        lines += ['', 'Not tried, because this vessel cannot have them:', '']
+        lines += [f'- {line}' for line in excluded]
+    return lines + ['']
 
 
 def _locate_section(loc: dict) -> list[str]:
@@ -323,9 +344,12 @@ def _name_section(result: dict) -> list[str]:
 
 def _model_section(result: dict) -> list[str]:
     lines = ['## 3. Augmented physics', '']
-    aug = result.get('augmented_physics')
+    aug, verdict = result.get('augmented_physics'), result.get('augmented_verdict')
+    if verdict:
+        lines += [verdict['sentence'], '']
     if not aug:
-        return lines + ['No augmented physics: nothing was found to add.', '']
+        return lines + ([] if verdict else ['No augmented physics: nothing was found to add.',
+                                            ''])
     return lines + [
         f'- `{aug["physics"]}`: nominal terms plus the extra terms (load with '
         '`vessel_physics.augmented.load_physics`);',

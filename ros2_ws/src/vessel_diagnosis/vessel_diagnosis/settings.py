@@ -68,6 +68,7 @@ class Selection:
     max_terms: int
     rounds: int
     gauss_newton_iterations: int
+    final_gauss_newton_iterations: int
 
 
 @dataclass(frozen=True)
@@ -97,8 +98,19 @@ class Excitation:
 
 
 @dataclass(frozen=True)
+class ScaleCheck:
+    """Whether the recordings move like a vessel of the vessel file's length (scale.py)."""
+
+    quantile: float
+    max_froude: float
+    turning_speed_share: float
+    max_turning_rate: float
+    limits_margin: float
+
+
+@dataclass(frozen=True)
 class Evaluation:
-    """Before/after errors on held-out recordings."""
+    """Before/after errors on held-out recordings, and when the augmented physics is kept."""
 
     holdout_fraction: float
     holdout_seed: int
@@ -106,6 +118,8 @@ class Evaluation:
     window: int
     horizon: int
     stride: int
+    min_trajectory_gain: float
+    max_state_loss: float
 
 
 @dataclass(frozen=True)
@@ -121,6 +135,7 @@ class Settings:
     collinearity: Collinearity
     excitation: Excitation
     evaluation: Evaluation
+    scale_check: ScaleCheck
 
     def to_dict(self) -> dict:
         """Return the settings as a plain mapping."""
@@ -195,7 +210,7 @@ def load_settings(path: str | Path | None = None, overrides: Mapping | None = No
                'locate': Locate,
                'selection': Selection, 'validation': Validation,
                'collinearity': Collinearity, 'excitation': Excitation,
-               'evaluation': Evaluation}
+               'evaluation': Evaluation, 'scale_check': ScaleCheck}
     built = {}
     for name, cls in classes.items():
         values = user.get(name, {})
