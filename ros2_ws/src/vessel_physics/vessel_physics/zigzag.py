@@ -41,8 +41,13 @@ def overshoots(heading: np.ndarray, check: float) -> tuple[float, float]:
     Return the first two overshoot angles (deg) of one zig-zag's heading (rad).
 
     A reversal happens when the heading passes the check angle on the side it is turning
-    to; the overshoot is how far it then goes beyond it. NaN when the run is too short.
+    to; the overshoot is how far it then goes beyond it. The first turn may go either way.
+    NaN when the run is too short.
     """
+    beyond = np.flatnonzero(np.abs(heading) > check)
+    if not len(beyond):
+        return math.nan, math.nan
+    heading = np.sign(heading[beyond[0]]) * heading   # first turn to starboard from here
     side = 0.0
     reversals = []
     for k, psi in enumerate(heading):
