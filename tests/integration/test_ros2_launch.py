@@ -159,6 +159,8 @@ def test_demo_launch_answers_the_cli_and_records_its_namespace(
     assert min(counts.values()) > 0, counts
 
 
+# Two model compilations at once: 60-90 s on 2 cores; kept out of the default run.
+@pytest.mark.slow
 def test_two_vessels_on_one_graph_each_forecast_only_their_own(launcher, ros_node):
     from nav_msgs.msg import Odometry
 
