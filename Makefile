@@ -3,7 +3,7 @@
 SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
-.PHONY: help setup demo test test-slow lint bench clean
+.PHONY: help setup rostools demo test test-slow lint bench clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | expand -t 12
@@ -11,13 +11,16 @@ help:  ## list the targets
 setup:  ## create .venv, install pinned dependencies, build ros2_ws (idempotent)
 	@tools/setup.sh all
 
+rostools: setup  ## the test-only ros2 CLI and launch in .venv-rostools (idempotent)
+	@tools/setup.sh rostools
+
 demo: setup  ## run the main job: simulator + predictor + client, forecast vs truth
 	@tools/with_env.sh tools/demo.sh
 
-test: setup  ## quality gates and the default test suite (slow checks excluded)
+test: setup rostools  ## quality gates and the default test suite (slow checks excluded)
 	@tools/with_env.sh tools/run_tests.sh
 
-test-slow: setup  ## only the slow checks (minutes each)
+test-slow: setup rostools  ## only the slow checks (minutes each)
 	@tools/with_env.sh tools/run_tests.sh -m slow
 
 lint: setup  ## quality gates only
@@ -26,5 +29,5 @@ lint: setup  ## quality gates only
 bench: setup  ## every benchmark, JSON on stdout
 	@for suite in sim convert forecast; do tools/with_env.sh python offline/bench.py $$suite; done
 
-clean:  ## remove build products (keeps .venv)
-	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log .pytest_cache .ruff_cache
+clean:  ## remove build products and the test-only tools (keeps .venv)
+	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log .pytest_cache .ruff_cache .venv-rostools

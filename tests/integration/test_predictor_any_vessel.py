@@ -100,7 +100,7 @@ def test_predictor_serves_a_foreign_vessel_on_its_own_topics(skiff_model, launch
     assert np.isfinite(hybrid).all()
     assert hybrid[0, 0] == pytest.approx(0.8, abs=0.5)  # starts near the measured surge
     # Plans name the patrol boat's actuators: refused with the reason, never silently.
-    client = ros_node.create_client(Predict, '/predictor/predict')
+    client = ros_node.create_client(Predict, '/vessel/predictor/predict')
     assert client.wait_for_service(timeout_sec=10)
     future = client.call_async(Predict.Request(plans=[ControlPlan()]))
     assert spin_until(ros_node, future.done, 10)

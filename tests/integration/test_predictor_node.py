@@ -111,7 +111,7 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
     from hybrid_predictor_interfaces.srv import Predict
 
     predictor = start_pair(launcher)
-    client = ros_node.create_client(Predict, '/predictor/predict')
+    client = ros_node.create_client(Predict, '/vessel/predictor/predict')
     assert client.wait_for_service(timeout_sec=60)
 
     def plan(rudder, n=900, shaft=90.0):
@@ -229,11 +229,13 @@ class Feeder:
         from sensor_msgs.msg import JointState
 
         from vessel_ros_bridge import messages as m
+        from vessel_ros_bridge.names import DEFAULT_NAMESPACE as NS
 
         self.m = m
-        self.odom = node.create_publisher(Odometry, m.ODOM_TOPIC, 200)
-        self.act = node.create_publisher(JointState, m.ACTUATORS_TOPIC, 200)
-        self.wind = node.create_publisher(Vector3Stamped, m.WIND_TOPIC, 200)
+        # The test's node is in the root namespace: the nodes' relative names, made absolute.
+        self.odom = node.create_publisher(Odometry, f'{NS}/{m.ODOM_TOPIC}', 200)
+        self.act = node.create_publisher(JointState, f'{NS}/{m.ACTUATORS_TOPIC}', 200)
+        self.wind = node.create_publisher(Vector3Stamped, f'{NS}/{m.WIND_TOPIC}', 200)
 
     def sample(self, t):
         m, stamp = self.m, self.m.stamp_from_seconds(t)

@@ -140,7 +140,7 @@ def test_reset_service_restarts_the_run(launcher, ros_node):
     odom = Collector(ros_node, Odometry, '/vessel/odom')
     start_simulator(launcher, 'real_time_factor:=40.0')
     assert spin_until(ros_node, lambda: max(odom.by_t, default=0) >= 10, 30)
-    client = ros_node.create_client(Trigger, '/simulator/reset')
+    client = ros_node.create_client(Trigger, '/vessel/simulator/reset')
     assert client.wait_for_service(timeout_sec=10)
     future = client.call_async(Trigger.Request())
     assert spin_until(ros_node, future.done, 10) and future.result().success

@@ -48,12 +48,14 @@ from vessel_description import VesselError, load_vessel
 from vessel_physics import frames
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.lifecycle import run_node
+from vessel_ros_bridge.names import node_topic
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
 
 NODE_NAME = 'predictor'
-FORECAST_TOPIC = '/vessel/forecast'
-PATH_TOPIC = '/vessel/forecast/path'
-PLAN_TOPIC = '/vessel/control_plan'
+# Relative names: they follow the node's namespace (/vessel/forecast by default).
+FORECAST_TOPIC = 'forecast'
+PATH_TOPIC = 'forecast/path'
+PLAN_TOPIC = 'control_plan'
 DEFAULT_MODEL = ('models', 'default', 'model.safetensors')
 PLAN_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd', 'wind_speed', 'wind_direction')
 # The controls a ControlPlan message gives (its fields are the patrol boat's).
@@ -113,7 +115,8 @@ class PredictorNode(Node):
         self.readers = {}
         for topic, msg_class in input_types(self.topic_map).items():
             self.readers[topic] = channel_reader(self.topic_map, topic)
-            self.create_subscription(msg_class, topic, partial(self._on_input, topic), depth)
+            self.create_subscription(msg_class, node_topic(topic),
+                                     partial(self._on_input, topic), depth)
         self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10)
         self.create_service(Predict, '~/predict', self._on_predict)
         self.create_timer(p['diagnostics_period'], self._publish_diagnostics,

@@ -2,11 +2,12 @@
 The simulator node: a thin ROS 2 adapter around ``vessel_physics.simulator``.
 
 Publishes, once per simulated second (REP-103/105 frames, docs/conventions.md):
-``/vessel/odom`` (nav_msgs/Odometry, measured), ``/vessel/actuators``
-(sensor_msgs/JointState), ``/vessel/wind`` (geometry_msgs/Vector3Stamped, measured true
-wind), ``/clock`` and, optionally, ``/vessel/odom_true`` (noise-free). Commands on
-``/vessel/cmd`` (JointState) override the simulated operator while they keep arriving.
-``~/reset`` (std_srvs/Trigger) starts the run again. All numerics live in
+``odom`` (nav_msgs/Odometry, measured), ``actuators`` (sensor_msgs/JointState), ``wind``
+(geometry_msgs/Vector3Stamped, measured true wind), the global ``/clock`` and,
+optionally, ``odom_true`` (noise-free). Commands on ``cmd`` (JointState) override the
+simulated operator while they keep arriving. ``~/reset`` (std_srvs/Trigger) starts the
+run again. Names are relative to the node's namespace, ``/vessel`` unless moved
+(``-r __ns:=/boat1``). All numerics live in
 ``vessel_physics``; this module only moves values between it and messages.
 """
 

@@ -9,11 +9,16 @@ import rclpy
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 
+from vessel_ros_bridge.names import DEFAULT_NAMESPACE
+
 
 def run_node(make_node: Callable, program: str, expected_errors: tuple = (),
              args=None) -> int:
     """
     Create a node with ``make_node()``, spin it, and shut down cleanly; return an exit code.
+
+    The node starts in ``DEFAULT_NAMESPACE`` unless the command line moves it
+    (``--ros-args -r __ns:=/boat1``; a remapped namespace overrides the constructor's).
 
     Set-up errors of the kinds in ``expected_errors`` (and invalid parameter values) end
     the program with one line ``PROGRAM: error: ...`` and exit code 2. A signal that
@@ -23,7 +28,7 @@ def run_node(make_node: Callable, program: str, expected_errors: tuple = (),
     rclpy.init(args=args)
     node = None
     try:
-        node = make_node()
+        node = make_node(namespace=DEFAULT_NAMESPACE)
         rclpy.spin(node)
     except (InvalidParameterValueException, *expected_errors) as exc:
         print(f'{program}: error: {exc}', file=sys.stderr)

@@ -1,6 +1,9 @@
 """
 Vessel arrays <-> ROS messages, on the topics of docs/conventions.md.
 
+Topic names are relative: they follow the node's namespace (``vessel_ros_bridge.names``;
+``/vessel/odom`` in the default one).
+
 Builders make rclpy messages from the physics' quantities (NED/FRD, SI); readers take
 any message object with the standard field names, so they serve rclpy messages and
 messages deserialized from bags alike. Every frame change goes through
@@ -18,11 +21,11 @@ from sensor_msgs.msg import JointState
 
 from vessel_physics import frames
 
-ODOM_TOPIC = '/vessel/odom'
-ODOM_TRUE_TOPIC = '/vessel/odom_true'  # noise-free state, simulator only
-ACTUATORS_TOPIC = '/vessel/actuators'
-WIND_TOPIC = '/vessel/wind'
-COMMAND_TOPIC = '/vessel/cmd'
+ODOM_TOPIC = 'odom'
+ODOM_TRUE_TOPIC = 'odom_true'  # noise-free state, simulator only
+ACTUATORS_TOPIC = 'actuators'
+WIND_TOPIC = 'wind'
+COMMAND_TOPIC = 'cmd'
 
 PROPELLER = 'propeller'
 RUDDER_PORT = 'rudder_port'
