@@ -10,6 +10,7 @@ from hybrid_predictor.plans import (
     ActuatorLimits,
     PlanError,
     bound_hit_fraction,
+    check_plan,
     hold_latest,
     plan_controls,
     track,
@@ -48,11 +49,27 @@ def test_a_planned_wind_is_used_as_cos_sin_of_its_direction():
     ({'shaft_speed': np.full(H, 150.0)}, 'shaft_speed outside'),
     ({'rudder_port': np.full(H, -0.7)}, 'rudder_port outside'),
     ({'wind_speed': np.full(3, 1.0)}, 'wind_speed has 3 entries'),
+    ({'wind_speed': np.full(H, 5.0)}, 'wind_direction 0; give both'),
+    ({'wind_direction': np.zeros(H)}, 'wind_speed has 0 entries and wind_direction 5'),
+    ({'wind_speed': np.full(H, 5.0), 'wind_direction': np.full(H, np.nan)},
+     'wind_direction[0] is nan'),
+    ({'rudder_stbd': np.zeros(H + 2)}, 'rudder_stbd has 7 entries, need 5'),
+    ({'rudder_port': 'abc'}, 'rudder_port is not a sequence of numbers'),
     ({'wind_speed': np.full(H, -1.0), 'wind_direction': np.zeros(H)}, 'wind_speed must be'),
 ])
 def test_malformed_plans_are_refused_with_the_reason(override, message):
     with pytest.raises(PlanError, match=message.replace('[', r'\[').replace(']', r'\]')):
         plan_controls(good_plan(**override), LATEST, H, LIMITS, index=3)
+
+
+def test_a_topic_plan_may_be_longer_than_the_horizon_but_not_ragged():
+    long = {k: np.concatenate([v, v]) for k, v in good_plan().items()}
+    arrays = check_plan(long, H, LIMITS, exact=False)
+    assert len(arrays['shaft_speed']) == 2 * H and len(arrays['wind_speed']) == 0
+    with pytest.raises(PlanError, match='need 5'):
+        check_plan(long, H, LIMITS)
+    with pytest.raises(PlanError, match='need at least 5'):
+        check_plan(good_plan(shaft_speed=np.full(H - 1, 80.0)), H, LIMITS, exact=False)
 
 
 def test_hold_latest_repeats_the_last_controls():
