@@ -128,3 +128,16 @@ def test_an_old_sample_from_a_live_source_is_out_of_order_not_a_restart():
 def test_configure_refuses_non_positive_spans():
     with pytest.raises(ValueError, match='positive'):
         window_with_checks(restart_span=0.0)
+
+
+def test_a_forecast_outside_the_limits_or_not_finite_is_withheld():
+    from hybrid_predictor.plausibility import forecast_problem
+
+    good = np.tile([6.0, 0.1, 0.0, 0.01, 0.02], (1, 900, 1))
+    track = (np.zeros(900), np.zeros(900), np.zeros(900))
+    assert forecast_problem(good, track, BOAT) is None
+    absurd = good.copy()
+    absurd[0, 500, 0] = 7e14
+    assert 'u reaches 7e+14, outside the vessel limits [-3, 12]' in \
+        forecast_problem(absurd, track, BOAT)
+    assert forecast_problem(good, (np.full(900, np.nan),) * 3, BOAT) == 'non-finite values'

@@ -97,18 +97,32 @@ def test_bound_hits_count_corrections_at_the_bound():
     assert bound_hit_fraction(hybrid, physics, np.array([np.inf, np.inf])) == 0.0
 
 
-def test_health_levels_follow_the_window_and_new_rejections():
-    h = health.Health()
-    level, message, _ = h.report({})
+def test_health_levels_follow_what_happens_on_the_nodes_clock():
+    h = health.Health(silence_error=1.5, max_age=5.0, rejection_warn_fraction=0.2)
+    level, message, _ = h.report(0.0, None, 0, {})
     assert level == health.STALE and 'waiting' in message
-    h.record_window('incomplete', 'state gap of 4.0 s', 0.5, 1.0)
-    assert h.report({})[0] == health.ERROR
-    h.record_window('ok', '', 1.0, 0.1)
-    for ms in (5.0, 6.0, 7.0):
-        h.record_forecast(ms, 0.0)
-    level, _, values = h.report({'non_finite': 2})
-    assert level == health.WARN and values['rejected_non_finite'] == '2'
-    level, _, values = h.report({'non_finite': 2})
+    h.record_window('incomplete', 'state gap of 4.0 s', 0.5)
+    level, message, _ = h.report(2.0, 1.0, 10, {})
+    assert level == health.ERROR and 'no forecast for 2.0 s: state gap of 4.0 s' in message
+    h.record_window('ok', '', 1.0)
+    for k, ms in enumerate((5.0, 6.0, 7.0)):
+        h.record_forecast(10.0 + k, ms, 0.0)
+    level, message, values = h.report(12.5, 12.0, 20, {'non_finite': 2})
     assert level == health.OK and values['forecast_latency_p50_ms'] == '6.00'
-    h.record_forecast(5.0, 0.5)
-    assert 'bound' in h.report({'non_finite': 2})[1]
+    assert values['input_age_s'] == '0.50' and values['rejected_non_finite'] == '2'
+    # 8 of the next 10 inputs rejected: a high rate warns.
+    level, message, _ = h.report(12.9, 12.0, 22, {'non_finite': 10})
+    assert level == health.WARN and '8 of 10 inputs rejected' in message
+    h.record_withheld('u reaches 1e+14')
+    level, message, values = h.report(12.95, 12.0, 24, {'non_finite': 10})
+    assert level == health.WARN and 'u reaches 1e+14' in message
+    assert values['forecasts_withheld'] == '1'
+    # Silence: the age and the time since the last forecast grow with the clock.
+    level, message, values = h.report(20.0, 12.0, 24, {'non_finite': 10})
+    assert level == health.ERROR and 'no forecast for 8.0 s' in message
+    assert 'newest state is 8.0 s old' in message and values['input_age_s'] == '8.00'
+    h.record_forecast(21.0, 5.0, 0.5)
+    level, message, _ = h.report(21.1, 21.0, 30, {'non_finite': 10})
+    assert level == health.WARN and 'bound' in message
+    h.clock_jumped(3.0)   # /clock went back: silence counts from the jump
+    assert 'no forecast' not in h.report(3.5, None, 30, {'non_finite': 10})[1]

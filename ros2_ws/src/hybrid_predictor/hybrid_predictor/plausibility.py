@@ -15,11 +15,14 @@ sample is checked, in the model's quantities, against what the vessel file decla
 A vessel file without a limit for one of its states is refused at start-up in one line:
 the predictor cannot tell a spike from a state without it. Heading, position and wind
 have no declared bounds and are only checked for being finite (by the window).
+``forecast_problem`` holds every forecast to the same limits before it is published.
 """
 
 from __future__ import annotations
 
 import math
+
+import numpy as np
 
 from vessel_datasets.topic_map import ACTUATOR_PREFIX, TopicMap
 from vessel_description import VesselError
@@ -103,3 +106,22 @@ class Plausibility:
             return 'implausible', (f'{topic}: phi = {phi:.6g} outside the vessel limits '
                                    f'[{low:g}, {high:g}]')
         return None
+
+
+def forecast_problem(hybrid: np.ndarray, track: tuple[np.ndarray, ...], vessel) -> str | None:
+    """
+    Return why a forecast must be withheld, or None.
+
+    ``hybrid`` is (..., horizon, n_state) in the vessel's state order; ``track`` the
+    trajectory arrays (x, y, heading). Every value must be finite and every state inside
+    the vessel's ``limits`` (the same plausible ranges the inputs are held to).
+    """
+    if not np.isfinite(hybrid).all() or not all(np.isfinite(a).all() for a in track):
+        return 'non-finite values'
+    for i, name in enumerate(vessel.states):
+        low, high = vessel.limits[name]
+        column = hybrid[..., i]
+        worst = column.min() if column.min() < low else column.max()
+        if not low <= worst <= high:
+            return f'{name} reaches {worst:.6g}, outside the vessel limits [{low:g}, {high:g}]'
+    return None
