@@ -118,12 +118,13 @@ class Health:
         if accepted + total_rejected == 0:
             return STALE, f'waiting for input: {self.window_reason}', values
         errors, warnings = [], []
-        if since > self.silence_error:
-            why = self.window_reason if self.window_status != 'ok' else 'no new state'
-            errors.append(f'no forecast for {since:.1f} s: {why}')
         if age is not None and age > self.max_age:
             errors.append(f'inputs stale: newest state is {age:.1f} s old (max '
                           f'{self.max_age:g} s)')
+        if since > self.silence_error:
+            why = '' if errors or self.window_status in ('ok', 'stale') else \
+                f': {self.window_reason}'
+            errors.append(f'no forecast for {since:.1f} s{why}')
         if new_offered and new_rejected / new_offered > self.rejection_warn_fraction:
             warnings.append(f'{new_rejected} of {new_offered} inputs rejected since the '
                             f'last report')
