@@ -102,6 +102,8 @@ def test_health_levels_follow_what_happens_on_the_nodes_clock():
     level, message, _ = h.report(0.0, None, 0, {})
     assert level == health.STALE and 'waiting' in message
     h.record_window('incomplete', 'state gap of 4.0 s', 0.5)
+    h.record_input(0.0)   # silence counts from the first input
+    h.record_input(1.0)
     level, message, _ = h.report(2.0, 1.0, 10, {})
     assert level == health.ERROR and 'no forecast for 2.0 s: state gap of 4.0 s' in message
     h.record_window('ok', '', 1.0)

@@ -35,7 +35,7 @@ class Health:
     rejection_warn_fraction: float = 0.2
     bound_hit_warn: float = 0.2
     latency_window: int = 200
-    started: float = 0.0          # node clock (s) when forecasting could begin
+    started: float | None = None  # node clock (s) of the first accepted input
     latencies_ms: deque = field(default_factory=deque)
     forecasts: int = 0
     withheld: int = 0
@@ -68,6 +68,11 @@ class Health:
         """Note the outcome of the latest window assembly."""
         self.window_status, self.window_reason, self.window_fill = status, reason, fill
 
+    def record_input(self, now: float) -> None:
+        """Note an accepted input: silence is counted from the first one on."""
+        if self.started is None:
+            self.started = now
+
     def clock_jumped(self, now: float) -> None:
         """Restart the silence count after the node's clock jumped (e.g. /clock reset)."""
         self.started = now
@@ -88,8 +93,9 @@ class Health:
         ``newest_state`` is the stamp of the newest accepted state (s) or None;
         ``accepted`` and ``rejected`` (per reason) are cumulative input counts.
         """
-        since = now - (self.started if self.last_forecast_time is None
-                       else self.last_forecast_time)
+        since_when = self.started if self.last_forecast_time is None else \
+            self.last_forecast_time
+        since = 0.0 if since_when is None else now - since_when
         age = None if newest_state is None else now - newest_state
         values = {
             'window_status': self.window_status,

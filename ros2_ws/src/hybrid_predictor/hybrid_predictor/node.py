@@ -121,8 +121,7 @@ class PredictorNode(Node):
                                   p['max_age'], p['max_future'], p['restart_span'],
                                   Plausibility(self.topic_map, p['quaternion_tolerance']))
         self.health = Health(silence_error=self._silence_error(p), max_age=p['max_age'],
-                             rejection_warn_fraction=p['rejection_warn_fraction'],
-                             started=self._now())
+                             rejection_warn_fraction=p['rejection_warn_fraction'])
         # Guards the window, the pending state, the plan and the counters, which the
         # input, forecast, service and clock threads share; held only briefly.
         self.lock = threading.Lock()
@@ -190,6 +189,7 @@ class PredictorNode(Node):
         with self.lock:
             self.window.configure(p['max_gap'], p['max_age'], p['max_future'],
                                   p['restart_span'])
+            self.window.plausibility.quaternion_tolerance = p['quaternion_tolerance']
             self.health.silence_error = self._silence_error(p)
             self.health.max_age = p['max_age']
             self.health.rejection_warn_fraction = p['rejection_warn_fraction']
@@ -238,6 +238,8 @@ class PredictorNode(Node):
                                       None if header is None else header.frame_id)
             if self.window.restarts != restarts:
                 self.last_forecast_t = -math.inf
+            if not reason:
+                self.health.record_input(now)
         if reason:
             self.get_logger().warning(f'rejected input: {reason}', throttle_duration_sec=5.0)
             return
