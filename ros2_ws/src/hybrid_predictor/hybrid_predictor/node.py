@@ -156,10 +156,10 @@ class PredictorNode(Node):
                                  callback_group=inputs)
         self.forecast_trigger = self.create_guard_condition(
             self._forecast_worker, callback_group=MutuallyExclusiveCallbackGroup())
-        # Every request is read and answered (success, failure or busy): the queue holds
-        # a burst of requests from many clients instead of dropping the oldest.
-        service_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST,
-                                 depth=p['service_queue_depth'],
+        # Every request is read and answered (success, failure or busy): reliable and
+        # keep-all, a burst of requests from many clients is queued, never overwritten
+        # (keep-last would drop the oldest unread ones silently).
+        service_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL,
                                  reliability=ReliabilityPolicy.RELIABLE)
         self.create_service(Predict, '~/predict', self._on_predict, qos_profile=service_qos,
                             callback_group=ReentrantCallbackGroup())
@@ -341,7 +341,7 @@ class PredictorNode(Node):
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
         forecast = self.engine.forecast(result.states, result.controls,
                                         self._future_controls(result, plan))
-        msg = self._forecast_message(result, forecast.hybrid[0], forecast.physics[0])
+        (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics)
         problem = self._withheld(forecast.hybrid, msg)
         if problem:
             with self.lock:
@@ -359,26 +359,30 @@ class PredictorNode(Node):
         return forecast_problem(hybrid, (np.asarray(msg.x), np.asarray(msg.y),
                                          np.asarray(msg.heading)), self.spec)
 
-    def _forecast_message(self, result, hybrid: np.ndarray, physics: np.ndarray) -> Forecast:
-        north, east, psi = track(hybrid, result.pose, self.spec)
+    def _forecast_messages(self, result, hybrid: np.ndarray, physics: np.ndarray,
+                           ) -> list[Forecast]:
+        """Return one Forecast per plan of a batch, hybrid and physics (plans, H, n)."""
+        north, east, psi = track(hybrid, result.pose, self.spec)   # one pass, all plans
         x_enu, y_enu, _ = frames.position_ned_to_enu(north, east)
-        msg = Forecast()
-        msg.header.stamp = messages.stamp_from_seconds(result.t_end)
-        msg.header.frame_id = self.p['world_frame']
-        msg.step_period = float(self.spec.dt)
-        msg.horizon = self.horizon
-        msg.state_names = list(self.spec.state_names)
-        msg.state_units = list(self.spec.state_units)
-        msg.vessel = self.spec.name
-        msg.control_names = list(self.spec.control_names)
-        # Typed arrays: rclpy checks a list element by element, an array('d') at once.
-        msg.hybrid = array('d', hybrid.ravel())
-        msg.physics = array('d', physics.ravel())
-        msg.residual_bound = array('d', self.engine.bound)
-        msg.x, msg.y = array('d', x_enu), array('d', y_enu)
-        msg.heading = array('d', frames.heading_ned_to_enu(psi))
-        msg.model_id = self.engine.model_id
-        return msg
+        heading = frames.heading_ned_to_enu(psi)
+        out = []
+        for i in range(len(hybrid)):
+            msg = Forecast()
+            msg.header.stamp = messages.stamp_from_seconds(result.t_end)
+            msg.header.frame_id = self.p['world_frame']
+            msg.step_period = float(self.spec.dt)
+            msg.horizon = self.horizon
+            msg.state_names = list(self.spec.state_names)
+            msg.state_units = list(self.spec.state_units)
+            msg.vessel = self.spec.name
+            msg.control_names = list(self.spec.control_names)
+            msg.hybrid, msg.physics = doubles(hybrid[i]), doubles(physics[i])
+            msg.residual_bound = doubles(self.engine.bound)
+            msg.x, msg.y, msg.heading = doubles(x_enu[i]), doubles(y_enu[i]), doubles(
+                heading[i])
+            msg.model_id = self.engine.model_id
+            out.append(msg)
+        return out
 
     def _path_message(self, forecast: Forecast) -> PathMsg:
         path = PathMsg()
@@ -445,13 +449,11 @@ class PredictorNode(Node):
                                          index=i) for i, f in enumerate(fields)])
         with self.batch_lock:
             forecast = self.engine.forecast(result.states, result.controls, future)
-        out = []
-        for i in range(len(plans)):
-            msg = self._forecast_message(result, forecast.hybrid[i], forecast.physics[i])
+        out = self._forecast_messages(result, forecast.hybrid, forecast.physics)
+        for i, msg in enumerate(out):
             problem = self._withheld(forecast.hybrid[i], msg)
             if problem:
                 return False, f'plan {i}: forecast withheld: {problem}', []
-            out.append(msg)
         return True, f'{len(plans)} forecasts from the window ending at ' \
                      f'{result.t_end:.3f} s', out
 
@@ -480,6 +482,18 @@ def check_time_parameters(p: dict) -> None:
     if p['restart_span'] < p['max_age']:
         raise ValueError(f'restart_span ({p["restart_span"]:g} s) must be at least max_age '
                          f'({p["max_age"]:g} s): a fresh sample is never a restart')
+
+
+def doubles(values) -> array:
+    """
+    Return values as a flat array('d') for a float64[] message field.
+
+    rclpy checks a list element by element, an array('d') at once; filling it from the
+    bytes of a NumPy array is a copy, where array('d', ndarray) converts every element.
+    """
+    out = array('d')
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
 
 
 def plan_fields(plan: ControlPlan) -> dict:
