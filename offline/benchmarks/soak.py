@@ -51,12 +51,14 @@ def add_arguments(parser) -> None:
                         help="the predictor's forecast_period, s of message time (default 1)")
     parser.add_argument('--busy-backoff', type=float, default=0.2,
                         help='seconds a client waits after a busy answer (default 0.2)')
+    parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
+                        help='another predictor parameter (repeatable)')
 
 
 def run(args) -> dict:
     """Run the soak with the command line's figures; return the JSON-ready result."""
     return soak(args.duration, args.clients, args.concurrency, args.plans, args.rtf,
-                args.forecast_period, args.busy_backoff)
+                args.forecast_period, args.busy_backoff, predictor_params=args.param)
 
 
 def rss_mb(pid: int) -> float:
@@ -121,6 +123,7 @@ class Load:
         self.lock = threading.Lock()
         self.sent = self.success = self.busy = self.failed = 0
         self.latencies: list[float] = []
+        self.success_latencies: list[float] = []
         self.failures: dict[str, int] = {}
         self.deadline = 0.0
 
@@ -145,6 +148,7 @@ class Load:
             self.latencies.append(time.monotonic() - sent_at)
             if response.success:
                 self.success += 1
+                self.success_latencies.append(time.monotonic() - sent_at)
             elif busy:
                 self.busy += 1
             else:
@@ -166,7 +170,7 @@ class Load:
 
 def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float,
          forecast_period: float = 1.0, busy_backoff: float = 0.2,
-         log_dir: Path | None = None) -> dict:
+         log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
     """Run the soak (see the module docstring) and return its figures."""
     import rclpy
     from rclpy.executors import MultiThreadedExecutor
@@ -180,7 +184,7 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
                 log=log_dir / 'simulator.log')
     predictor = start('hybrid_predictor', 'predictor', 'use_sim_time:=true',
                       f'max_plans:={max(plans, 1)}', f'forecast_period:={forecast_period}',
-                      log=log_dir / 'predictor.log')
+                      *predictor_params, log=log_dir / 'predictor.log')
     context = rclpy.Context()
     rclpy.init(context=context)
     node = rclpy.create_node('soak_client', context=context)
@@ -229,6 +233,7 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
     wall_gaps = np.diff(np.concatenate([[started], walls, [ended]]))
     stamp_gaps = np.diff(stamps) if len(stamps) > 1 else np.array([np.inf])
     latencies = np.asarray(load.latencies) * 1e3
+    successes = np.asarray(load.success_latencies) * 1e3
     return {
         'duration_s': round(ended - started, 1),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': plans,
@@ -245,6 +250,10 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
             latencies) else None,
         'latency_p99_ms': round(float(np.percentile(latencies, 99)), 1) if len(
             latencies) else None,
+        'success_latency_p50_ms': round(float(np.percentile(successes, 50)), 1) if len(
+            successes) else None,
+        'success_latency_p99_ms': round(float(np.percentile(successes, 99)), 1) if len(
+            successes) else None,
         'forecasts_published': len(during),
         'longest_silence_periods': round(float(stamp_gaps.max()) / forecast_period, 2),
         'longest_silence_wall_s': round(float(wall_gaps.max()), 3),
