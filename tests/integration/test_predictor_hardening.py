@@ -22,6 +22,8 @@ pytestmark = pytest.mark.ros
 RATE_HZ = 5.0          # live input rate of the feeder
 WINDOW_S = 60.0        # the patrol boat's window
 SILENCE_PERIOD = 2.0   # forecast period during the silence test (s)
+BURST = 20000          # messages of the burst test
+BURST_SILENCE = 3.0    # longest wall silence (s) allowed while it is read: 2 periods + 1 s
 
 
 class LiveFeeder:
@@ -184,6 +186,33 @@ def test_a_runtime_forecast_period_change_shows_in_the_publish_rate(fed):
     time.sleep(1.0)
     at_5s = forecasts_in(graph, 4.0)
     assert 2 <= at_1s <= 6 and at_02s >= 12 and at_5s <= 1, (at_1s, at_02s, at_5s)
+
+
+def test_a_burst_of_20000_messages_is_read_through_while_forecasts_go_on(fed):
+    from vessel_ros_bridge import messages as m
+
+    graph, _ = fed
+    assert set_parameter(graph, 'forecast_period', 1.0).successful
+    count = len(graph.forecasts)
+    assert wait_for(lambda: len(graph.forecasts) >= count + 2, 5)
+    before = graph.count('rejected_out_of_order')
+    # A replay of one old message, as fast as this process publishes, while the live
+    # feeder goes on in its own thread.
+    old = m.odometry_from_state(
+        {'u': 6.0, 'v': 0.0, 'p': 0.0, 'r': 0.0, 'phi': 0.0, 'psi': 0.0, 'x': 0.0, 'y': 0.0},
+        m.stamp_from_seconds(time.time() - 30.0), 'odom', 'base_link')
+    started = time.monotonic()
+    for _ in range(BURST):
+        graph.feeder.feeder.odom.publish(old)
+    time.sleep(3.0)
+    ended = time.monotonic()
+    arrivals = [t for t, _ in graph.forecasts if started <= t <= ended]
+    gaps = np.diff([started, *arrivals, ended])
+    assert gaps.max() <= BURST_SILENCE, (gaps.max(), ended - started)
+    # The burst was read (keep-last queues, the publisher's and the node's, drop part
+    # of it) and the newest real samples are still the ones forecast.
+    assert graph.count('rejected_out_of_order') > before, graph.values()
+    assert graph.stamp() >= time.time() - 3.0, graph.stamp() - time.time()
 
 
 def test_silence_turns_diagnostics_error_within_two_forecast_periods(fed):
