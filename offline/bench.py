@@ -8,6 +8,7 @@ an absolute time that depends on the machine) and states its goals beside the fi
     python offline/bench.py sim        # batch simulation vs real time
     python offline/bench.py convert    # bag conversion vs a bare rosbags pass
     python offline/bench.py forecast   # predictor latency vs a naive loop
+    python offline/bench.py soak       # concurrent what-if clients against the node
 """
 
 import argparse
@@ -22,6 +23,7 @@ SUITES = {
     'sim': ('benchmarks.sim', 'paper-sized batch simulation (96 runs x 1 h)'),
     'convert': ('benchmarks.convert', 'bag-to-dataset conversion throughput'),
     'forecast': ('benchmarks.forecast', '900-step forecast latency and throughput'),
+    'soak': ('benchmarks.soak', 'service soak: every request answered, forecasts flowing'),
 }
 
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -162,3 +163,71 @@ def spin_until(node, predicate, timeout: float) -> bool:
         executor.remove_node(node)
         executor.shutdown()
     return predicate()
+
+
+def wait_for(predicate, timeout: float) -> bool:
+    """Poll predicate() until true or timeout seconds pass; return predicate()."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not predicate():
+        time.sleep(0.05)
+    return bool(predicate())
+
+
+class Graph:
+    """A test node spun in a background thread, with what it hears."""
+
+    def __init__(self, name: str):
+        from diagnostic_msgs.msg import DiagnosticArray
+        import rclpy
+        from rclpy.executors import MultiThreadedExecutor
+
+        from hybrid_predictor_interfaces.msg import Forecast
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context)
+        self.node = rclpy.create_node(f'{name}_{os.getpid()}', context=self.context)
+        self.forecasts, self.diagnostics = [], []   # (monotonic s, message)
+        self.node.create_subscription(Forecast, '/vessel/forecast', lambda m: self.forecasts
+                                      .append((time.monotonic(), m)), 50)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: self
+                                      .diagnostics.append((time.monotonic(), m)), 50)
+        self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        """Stop spinning and leave the graph."""
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=5)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+    def status(self, since: float = 0.0):
+        """Return the latest predictor status received after ``since`` (monotonic s)."""
+        for t, msg in reversed(self.diagnostics):
+            if t >= since:
+                return msg.status[0]
+        return None
+
+    def values(self) -> dict:
+        """Return the key/values of the latest predictor status."""
+        status = self.status()
+        return {kv.key: kv.value for kv in status.values} if status else {}
+
+    def count(self, key: str) -> int:
+        """Return a counter of the latest status (0 if absent)."""
+        return int(self.values().get(key, 0))
+
+    def stamp(self, k: int = -1) -> float:
+        """Return the stamp (s) of the k-th forecast received."""
+        from vessel_ros_bridge.messages import seconds_from_stamp
+
+        return seconds_from_stamp(self.forecasts[k][1].header.stamp)
+
+    def call(self, client, request, timeout: float = 30.0):
+        """Call a service and wait for its response."""
+        future = client.call_async(request)
+        assert wait_for(future.done, timeout), 'no response'
+        return future.result()

@@ -170,6 +170,7 @@ def test_bad_inputs_are_rejected_counted_and_the_node_keeps_serving(launcher, ro
     nan.pose.pose.orientation.w = 1.0
     old = Odometry()
     old.header.stamp = m.stamp_from_seconds(START + 1.0)
+    old.header.frame_id = 'odom'   # else it is rejected for its empty frame id first
     old.pose.pose.orientation.w = 1.0
     for msg in (nan, old, latest):
         odom_pub.publish(msg)
@@ -207,6 +208,7 @@ def test_an_incomplete_window_gives_a_clear_status_and_no_forecast(launcher, ros
     for k in range(5):   # states only, 5 s: no actuators, no wind, too short
         msg = Odometry()
         msg.header.stamp = m.stamp_from_seconds(now - 5 + k)
+        msg.header.frame_id = 'odom'
         msg.pose.pose.orientation.w = 1.0
         pub.publish(msg)
         spin_until(ros_node, lambda: False, 0.2)

@@ -10,6 +10,7 @@ from hybrid_predictor.plans import (
     ActuatorLimits,
     PlanError,
     bound_hit_fraction,
+    check_plan,
     hold_latest,
     plan_controls,
     track,
@@ -48,11 +49,27 @@ def test_a_planned_wind_is_used_as_cos_sin_of_its_direction():
     ({'shaft_speed': np.full(H, 150.0)}, 'shaft_speed outside'),
     ({'rudder_port': np.full(H, -0.7)}, 'rudder_port outside'),
     ({'wind_speed': np.full(3, 1.0)}, 'wind_speed has 3 entries'),
+    ({'wind_speed': np.full(H, 5.0)}, 'wind_direction 0; give both'),
+    ({'wind_direction': np.zeros(H)}, 'wind_speed has 0 entries and wind_direction 5'),
+    ({'wind_speed': np.full(H, 5.0), 'wind_direction': np.full(H, np.nan)},
+     'wind_direction[0] is nan'),
+    ({'rudder_stbd': np.zeros(H + 2)}, 'rudder_stbd has 7 entries, need 5'),
+    ({'rudder_port': 'abc'}, 'rudder_port is not a sequence of numbers'),
     ({'wind_speed': np.full(H, -1.0), 'wind_direction': np.zeros(H)}, 'wind_speed must be'),
 ])
 def test_malformed_plans_are_refused_with_the_reason(override, message):
     with pytest.raises(PlanError, match=message.replace('[', r'\[').replace(']', r'\]')):
         plan_controls(good_plan(**override), LATEST, H, LIMITS, index=3)
+
+
+def test_a_topic_plan_may_be_longer_than_the_horizon_but_not_ragged():
+    long = {k: np.concatenate([v, v]) for k, v in good_plan().items()}
+    arrays = check_plan(long, H, LIMITS, exact=False)
+    assert len(arrays['shaft_speed']) == 2 * H and len(arrays['wind_speed']) == 0
+    with pytest.raises(PlanError, match='need 5'):
+        check_plan(long, H, LIMITS)
+    with pytest.raises(PlanError, match='need at least 5'):
+        check_plan(good_plan(shaft_speed=np.full(H - 1, 80.0)), H, LIMITS, exact=False)
 
 
 def test_hold_latest_repeats_the_last_controls():
@@ -80,18 +97,34 @@ def test_bound_hits_count_corrections_at_the_bound():
     assert bound_hit_fraction(hybrid, physics, np.array([np.inf, np.inf])) == 0.0
 
 
-def test_health_levels_follow_the_window_and_new_rejections():
-    h = health.Health()
-    level, message, _ = h.report({})
+def test_health_levels_follow_what_happens_on_the_nodes_clock():
+    h = health.Health(silence_error=1.5, max_age=5.0, rejection_warn_fraction=0.2)
+    level, message, _ = h.report(0.0, None, 0, {})
     assert level == health.STALE and 'waiting' in message
-    h.record_window('incomplete', 'state gap of 4.0 s', 0.5, 1.0)
-    assert h.report({})[0] == health.ERROR
-    h.record_window('ok', '', 1.0, 0.1)
-    for ms in (5.0, 6.0, 7.0):
-        h.record_forecast(ms, 0.0)
-    level, _, values = h.report({'non_finite': 2})
-    assert level == health.WARN and values['rejected_non_finite'] == '2'
-    level, _, values = h.report({'non_finite': 2})
+    h.record_window('incomplete', 'state gap of 4.0 s', 0.5)
+    h.record_input(0.0)   # silence counts from the first input
+    h.record_input(1.0)
+    level, message, _ = h.report(2.0, 1.0, 10, {})
+    assert level == health.ERROR and 'no forecast for 2.0 s: state gap of 4.0 s' in message
+    h.record_window('ok', '', 1.0)
+    for k, ms in enumerate((5.0, 6.0, 7.0)):
+        h.record_forecast(10.0 + k, ms, 0.0)
+    level, message, values = h.report(12.5, 12.0, 20, {'non_finite': 2})
     assert level == health.OK and values['forecast_latency_p50_ms'] == '6.00'
-    h.record_forecast(5.0, 0.5)
-    assert 'bound' in h.report({'non_finite': 2})[1]
+    assert values['input_age_s'] == '0.50' and values['rejected_non_finite'] == '2'
+    # 8 of the next 10 inputs rejected: a high rate warns.
+    level, message, _ = h.report(12.9, 12.0, 22, {'non_finite': 10})
+    assert level == health.WARN and '8 of 10 inputs rejected' in message
+    h.record_withheld('u reaches 1e+14')
+    level, message, values = h.report(12.95, 12.0, 24, {'non_finite': 10})
+    assert level == health.WARN and 'u reaches 1e+14' in message
+    assert values['forecasts_withheld'] == '1'
+    # Silence: the age and the time since the last forecast grow with the clock.
+    level, message, values = h.report(20.0, 12.0, 24, {'non_finite': 10})
+    assert level == health.ERROR and 'no forecast for 8.0 s' in message
+    assert 'newest state is 8.0 s old' in message and values['input_age_s'] == '8.00'
+    h.record_forecast(21.0, 5.0, 0.5)
+    level, message, _ = h.report(21.1, 21.0, 30, {'non_finite': 10})
+    assert level == health.WARN and 'bound' in message
+    h.clock_jumped(3.0)   # /clock went back: silence counts from the jump
+    assert 'no forecast' not in h.report(3.5, None, 30, {'non_finite': 10})[1]

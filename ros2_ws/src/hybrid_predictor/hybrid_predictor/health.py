@@ -1,12 +1,19 @@
 """
 The predictor's health in numbers, for /diagnostics (no ROS).
 
-Keeps the latest forecast latencies (from a state message arriving to its forecast
-being published) and decides the diagnostic level: OK while forecasts flow, WARN when
-inputs are rejected or the LSTM keeps hitting its bound, ERROR when no window can be
-formed (stale or incomplete inputs) and STALE before anything arrived. Rejected inputs
-warn only while new ones keep coming: the counts in the report are cumulative, the
-level looks at what changed since the previous report.
+Everything is judged at report time on the node's own clock (``now``, which follows
+use_sim_time), from what actually happened, never from a figure frozen at the last
+forecast:
+
+- ERROR when no forecast was published for ``silence_error`` seconds (the message adds
+  why the latest window could not be formed), or when the newest accepted state is
+  older than ``max_age`` (inputs stale);
+- WARN when more than ``rejection_warn_fraction`` of the inputs offered since the
+  previous report were rejected, when forecasts were withheld (non-finite or outside
+  the vessel limits) since then, or when the LSTM keeps hitting its bound;
+- STALE before any input arrived; OK otherwise.
+
+The message names every reason found, the worst first.
 """
 
 from __future__ import annotations
@@ -21,31 +28,55 @@ OK, WARN, ERROR, STALE = 0, 1, 2, 3
 
 @dataclass
 class Health:
-    """Running figures of one predictor; ``report`` turns them into key/value pairs."""
+    """Running figures of one predictor; ``report`` turns them into level and values."""
 
-    latency_window: int = 200
+    silence_error: float          # s without a published forecast -> ERROR
+    max_age: float                # s, newest state older -> ERROR
+    rejection_warn_fraction: float = 0.2
     bound_hit_warn: float = 0.2
+    latency_window: int = 200
+    started: float | None = None  # node clock (s) of the first accepted input
     latencies_ms: deque = field(default_factory=deque)
     forecasts: int = 0
+    withheld: int = 0
+    last_withheld_reason: str = ''
+    last_forecast_time: float | None = None
     bound_hit_fraction: float = 0.0
     window_status: str = 'incomplete'
     window_reason: str = 'no input yet'
     window_fill: float = 0.0
-    input_age_s: float | None = None
+    _offered_at_last_report: int = 0
     _rejected_at_last_report: int = 0
+    _withheld_at_last_report: int = 0
 
-    def record_forecast(self, latency_ms: float, bound_hit_fraction: float) -> None:
-        """Note one published forecast."""
+    def record_forecast(self, now: float, latency_ms: float,
+                        bound_hit_fraction: float) -> None:
+        """Note one published forecast at ``now`` (s, node clock)."""
         self.latencies_ms.append(latency_ms)
         while len(self.latencies_ms) > self.latency_window:
             self.latencies_ms.popleft()
         self.forecasts += 1
+        self.last_forecast_time = now
         self.bound_hit_fraction = bound_hit_fraction
 
-    def record_window(self, status: str, reason: str, fill: float, age: float | None) -> None:
+    def record_withheld(self, reason: str) -> None:
+        """Note a forecast that was computed but not published, and why."""
+        self.withheld += 1
+        self.last_withheld_reason = reason
+
+    def record_window(self, status: str, reason: str, fill: float) -> None:
         """Note the outcome of the latest window assembly."""
-        self.window_status, self.window_reason = status, reason
-        self.window_fill, self.input_age_s = fill, age
+        self.window_status, self.window_reason, self.window_fill = status, reason, fill
+
+    def record_input(self, now: float) -> None:
+        """Note an accepted input: silence is counted from the first one on."""
+        if self.started is None:
+            self.started = now
+
+    def clock_jumped(self, now: float) -> None:
+        """Restart the silence count after the node's clock jumped (e.g. /clock reset)."""
+        self.started = now
+        self.last_forecast_time = None
 
     def latency_percentiles(self) -> tuple[float, float] | None:
         """Return (p50, p99) of the recent latencies in ms, or None."""
@@ -54,14 +85,27 @@ class Health:
         values = np.fromiter(self.latencies_ms, float)
         return float(np.percentile(values, 50)), float(np.percentile(values, 99))
 
-    def report(self, rejected: dict[str, int]) -> tuple[int, str, dict[str, str]]:
-        """Return (level, message, values) given the rejected-input counts per reason."""
+    def report(self, now: float, newest_state: float | None, accepted: int,
+               rejected: dict[str, int]) -> tuple[int, str, dict[str, str]]:
+        """
+        Return (level, message, values) at ``now`` (s, node clock).
+
+        ``newest_state`` is the stamp of the newest accepted state (s) or None;
+        ``accepted`` and ``rejected`` (per reason) are cumulative input counts.
+        """
+        since_when = self.started if self.last_forecast_time is None else \
+            self.last_forecast_time
+        since = 0.0 if since_when is None else now - since_when
+        age = None if newest_state is None else now - newest_state
         values = {
             'window_status': self.window_status,
             'window_fill_percent': f'{100.0 * self.window_fill:.0f}',
-            'input_age_s': 'n/a' if self.input_age_s is None else f'{self.input_age_s:.2f}',
+            'input_age_s': 'n/a' if age is None else f'{age:.2f}',
+            'seconds_since_last_forecast': f'{since:.2f}',
             'forecasts_published': str(self.forecasts),
+            'forecasts_withheld': str(self.withheld),
             'lstm_bound_hit_fraction': f'{self.bound_hit_fraction:.3f}',
+            'inputs_accepted': str(accepted),
         }
         latency = self.latency_percentiles()
         if latency is not None:
@@ -69,16 +113,36 @@ class Health:
             values['forecast_latency_p99_ms'] = f'{latency[1]:.2f}'
         for reason, count in sorted(rejected.items()):
             values[f'rejected_{reason}'] = str(count)
-        new_rejections = sum(rejected.values()) - self._rejected_at_last_report
-        self._rejected_at_last_report = sum(rejected.values())
-        if self.window_status != 'ok':
-            if self.forecasts == 0 and self.input_age_s is None:
-                return STALE, f'waiting for input: {self.window_reason}', values
-            return ERROR, f'no forecast: {self.window_reason}', values
+        total_rejected = sum(rejected.values())
+        new_rejected = total_rejected - self._rejected_at_last_report
+        new_offered = accepted + total_rejected - self._offered_at_last_report
+        new_withheld = self.withheld - self._withheld_at_last_report
+        self._rejected_at_last_report = total_rejected
+        self._offered_at_last_report = accepted + total_rejected
+        self._withheld_at_last_report = self.withheld
+
+        if accepted + total_rejected == 0:
+            return STALE, f'waiting for input: {self.window_reason}', values
+        errors, warnings = [], []
+        if age is not None and age > self.max_age:
+            errors.append(f'inputs stale: newest state is {age:.1f} s old (max '
+                          f'{self.max_age:g} s)')
+        if since > self.silence_error:
+            why = '' if errors or self.window_status in ('ok', 'stale') else \
+                f': {self.window_reason}'
+            errors.append(f'no forecast for {since:.1f} s{why}')
+        if new_offered and new_rejected / new_offered > self.rejection_warn_fraction:
+            warnings.append(f'{new_rejected} of {new_offered} inputs rejected since the '
+                            f'last report')
+        if new_withheld:
+            warnings.append(f'{new_withheld} forecasts withheld: '
+                            f'{self.last_withheld_reason}')
         if self.bound_hit_fraction > self.bound_hit_warn:
-            return WARN, (f'LSTM correction at its bound in {100 * self.bound_hit_fraction:.0f}'
-                          f' % of the forecast: the physics is far off'), values
-        if new_rejections > 0:
-            return WARN, f'forecasting; {new_rejections} inputs rejected since last report', \
-                values
+            warnings.append(f'LSTM correction at its bound in '
+                            f'{100 * self.bound_hit_fraction:.0f} % of the forecast: the '
+                            f'physics is far off')
+        if errors:
+            return ERROR, '; '.join(errors + warnings), values
+        if warnings:
+            return WARN, 'forecasting; ' + '; '.join(warnings), values
         return OK, 'forecasting', values

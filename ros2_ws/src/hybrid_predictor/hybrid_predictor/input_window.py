@@ -65,18 +65,26 @@ def channel_reader(topic_map: TopicMap, topic: str):
 
 @dataclass
 class StreamCounts:
-    """What happened to the samples offered to one stream."""
+    """What happened to the samples offered to one stream (one counter per reason)."""
 
     accepted: int = 0
     non_finite: int = 0
     duplicate: int = 0
     out_of_order: int = 0
     incomplete: int = 0
+    implausible: int = 0
+    bad_quaternion: int = 0
+    no_frame_id: int = 0
+    future: int = 0
 
     @property
     def rejected(self) -> int:
         """Return the number of rejected samples."""
-        return self.non_finite + self.duplicate + self.out_of_order + self.incomplete
+        return sum(getattr(self, reason) for reason in REJECTIONS)
+
+
+# Why a sample can be rejected (StreamCounts' counters other than ``accepted``).
+REJECTIONS = tuple(f for f in StreamCounts.__dataclass_fields__ if f != 'accepted')
 
 
 @dataclass
@@ -96,25 +104,35 @@ class Stream:
         """Return the stamp of the newest accepted sample, or None."""
         return self._times[-1] if self._times else None
 
+    def reject(self, reason: str, message: str) -> str:
+        """Count a rejection for ``reason`` (one of REJECTIONS); return the message."""
+        setattr(self.counts, reason, getattr(self.counts, reason) + 1)
+        return message
+
+    def content_reason(self, t: float, values: dict[str, float]) -> str | None:
+        """Count and return why a sample's content is unusable (not its time order)."""
+        have = set(values) | (set(self.channels) if self._values else set())
+        missing = [c for c in self.channels if c not in have]
+        if missing:
+            return self.reject('incomplete', f'{self.name}: first sample lacks {missing}')
+        if not math.isfinite(t) or not all(math.isfinite(v) for v in values.values()):
+            return self.reject('non_finite', f'{self.name}: non-finite value at t={t}')
+        return None
+
     def push(self, t: float, values: dict[str, float]) -> str | None:
         """Offer a sample at time ``t`` (s); return why it was rejected, or None."""
+        reason = self.content_reason(t, values)
+        if reason:
+            return reason
         if self._values:
             last = dict(zip(self.channels, self._values[-1], strict=True))
             values = {**last, **values}  # a partial sample completes from the last one
-        missing = [c for c in self.channels if c not in values]
-        if missing:
-            self.counts.incomplete += 1
-            return f'{self.name}: first sample lacks {missing}'
         row = [float(values[c]) for c in self.channels]
-        if not math.isfinite(t) or not all(math.isfinite(v) for v in row):
-            self.counts.non_finite += 1
-            return f'{self.name}: non-finite value at t={t}'
         if self._times and t <= self._times[-1]:
             if t == self._times[-1]:
-                self.counts.duplicate += 1
-                return f'{self.name}: duplicate stamp t={t}'
-            self.counts.out_of_order += 1
-            return f'{self.name}: stamp t={t} older than the last ({self._times[-1]})'
+                return self.reject('duplicate', f'{self.name}: duplicate stamp t={t}')
+            return self.reject('out_of_order', f'{self.name}: stamp t={t} older than the '
+                               f'last ({self._times[-1]})')
         self._times.append(t)
         self._values.append(row)
         self.counts.accepted += 1
@@ -187,34 +205,86 @@ class Window:
 
 
 class InputWindow:
-    """Collects one stream per topic of a vessel's topic map; builds windows on demand."""
+    """
+    Collects one stream per topic of a vessel's topic map; builds windows on demand.
+
+    Time is judged on the caller's clock ``now`` (the node's, following use_sim_time):
+    a sample more than ``max_future`` ahead of it is rejected (``future``) instead of
+    becoming the stream's newest; a sample more than ``restart_span`` older than its
+    stream's newest that is itself fresh (at most ``max_age`` old) means the source
+    restarted: every stream is cleared and the sample starts a new window, where an
+    out-of-order sample would otherwise shut the restarted source out.
+    """
 
     def __init__(self, topic_map: TopicMap, window: int, dt: float, max_gap: float,
-                 max_age: float):
-        if window < 2 or dt <= 0 or max_gap <= 0 or max_age <= 0:
-            raise ValueError(f'need window >= 2 and positive dt, max_gap, max_age; got '
-                             f'{window}, {dt}, {max_gap}, {max_age}')
+                 max_age: float, max_future: float = math.inf,
+                 restart_span: float = math.inf, plausibility=None):
+        if window < 2 or dt <= 0:
+            raise ValueError(f'need window >= 2 and dt > 0; got {window}, {dt}')
         self.topic_map, self.vessel = topic_map, topic_map.vessel
-        self.window, self.dt, self.max_gap, self.max_age = window, dt, max_gap, max_age
-        keep = (window + 1) * dt + max_gap
+        self.window, self.dt = window, dt
         self.methods = channel_methods(topic_map)
+        self.plausibility = plausibility
+        self.restarts = 0
         leaves: dict[str, list[str]] = {}
         for leaf in topic_map.leaves():
             leaves.setdefault(leaf.topic, []).append(leaf.channel)
         self.streams = {
             topic: Stream(topic, tuple(channels),
-                          all(self.methods[c] == 'hold' for c in channels), keep)
+                          all(self.methods[c] == 'hold' for c in channels), 0.0)
             for topic, channels in leaves.items()}
+        self.configure(max_gap=max_gap, max_age=max_age, max_future=max_future,
+                       restart_span=restart_span)
         self.state_topic = next(e.topic for e in topic_map.entries if e.name == STATE_ENTRY)
 
-    def push(self, stream: str, t: float, values: dict[str, float]) -> str | None:
-        """Offer a sample of channel values to a topic's stream; None if accepted."""
-        return self.streams[stream].push(t, values)
+    def configure(self, max_gap: float, max_age: float, max_future: float,
+                  restart_span: float) -> None:
+        """Set the time limits (s); the node calls it again when a parameter changes."""
+        if min(max_gap, max_age, max_future, restart_span) <= 0:
+            raise ValueError(f'need positive max_gap, max_age, max_future, restart_span; '
+                             f'got {max_gap}, {max_age}, {max_future}, {restart_span}')
+        self.max_gap, self.max_age = max_gap, max_age
+        self.max_future, self.restart_span = max_future, restart_span
+        for stream in self.streams.values():
+            stream.keep_s = (self.window + 1) * self.dt + max_gap
+
+    def push(self, stream: str, t: float, values: dict[str, float], now: float | None = None,
+             frame_id: str | None = None) -> str | None:
+        """
+        Offer a sample of channel values to a topic's stream; None if accepted.
+
+        ``now`` (s, the node's clock) enables the time checks of the class docstring;
+        ``frame_id`` is the message's header frame (None: a message without header).
+        """
+        target = self.streams[stream]
+        reason = target.content_reason(t, values)
+        if reason:
+            return reason
+        if self.plausibility is not None:
+            absurd = self.plausibility.check(stream, values, frame_id)
+            if absurd:
+                return target.reject(*absurd)
+        if now is not None:
+            if t > now + self.max_future:
+                return target.reject('future', f'{stream}: stamp t={t:.3f} is '
+                                     f'{t - now:.1f} s ahead of the clock (max '
+                                     f'{self.max_future:g} s)')
+            newest = target.latest_time
+            if newest is not None and newest - t > self.restart_span and \
+                    now - t <= self.max_age:
+                self.clear()
+                self.restarts += 1
+        return target.push(t, values)
 
     def clear(self) -> None:
         """Forget all samples, e.g. after the clock jumped back."""
         for stream in self.streams.values():
             stream.clear()
+
+    def rejected_counts(self) -> dict[str, int]:
+        """Return the rejected samples of all streams, per reason."""
+        return {reason: sum(getattr(s.counts, reason) for s in self.streams.values())
+                for reason in REJECTIONS}
 
     def assemble(self, now: float) -> Window:
         """Build the window ending at the newest state sample, or say why it cannot."""

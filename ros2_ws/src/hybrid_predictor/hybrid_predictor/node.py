@@ -8,26 +8,41 @@ message types it names, and optionally ``/vessel/control_plan``
 Outputs: ``/vessel/forecast`` (Forecast: hybrid forecast, its physical part, the
 LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path) and
 ``/diagnostics``. Service ``~/predict`` (Predict): forecasts for candidate control
-plans, evaluated as one batch. Window assembly, plan checks and health figures live in
-ROS-free modules of this package; the numerics in ``hybrid_models``.
+plans, evaluated as one batch. Window assembly, plan checks, plausibility limits and
+health figures live in ROS-free modules of this package; the numerics in
+``hybrid_models``.
+
+Threads (a MultiThreadedExecutor, see ``executor_for``): input and plan subscriptions
+share one mutually exclusive callback group and only read, check and store samples;
+forecasting runs in a group of its own, woken by a guard condition; ``~/predict`` is
+reentrant but admits at most ``service_capacity`` requests at a time and answers
+the rest "busy" at once; /clock, parameters and /diagnostics keep the default group.
+None of them waits for another, so no input callback starves.
 """
 
 from __future__ import annotations
 
 from array import array
+from dataclasses import dataclass
 from functools import partial
 import importlib
 import math
 from pathlib import Path
 import sys
+import threading
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
-from rclpy.clock import Clock, ClockType
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.clock import Clock, ClockType, JumpThreshold
+from rclpy.duration import Duration
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from hybrid_models.checkpoint import CheckpointError
 from hybrid_models.engine import ForecastEngine
@@ -37,10 +52,12 @@ from hybrid_predictor.plans import (
     ActuatorLimits,
     PlanError,
     bound_hit_fraction,
+    check_plan,
     hold_latest,
     plan_controls,
     track,
 )
+from hybrid_predictor.plausibility import Plausibility, forecast_problem
 from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
 from hybrid_predictor_interfaces.srv import Predict
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
@@ -70,6 +87,15 @@ def default_model_path() -> Path:
     return Path(get_package_share_directory('hybrid_predictor')).joinpath(*DEFAULT_MODEL)
 
 
+@dataclass(frozen=True)
+class Pending:
+    """A state sample awaiting its forecast."""
+
+    t: float              # its stamp (s, message clock)
+    received_ns: int      # when it reached this process (ns, system clock)
+    backlogged: bool      # it waited in the queue longer than backlog_skip
+
+
 class PredictorNode(Node):
     """Serve forecasts of the vessel's motion from the latest measurement window."""
 
@@ -92,15 +118,25 @@ class PredictorNode(Node):
         self.horizon = p['horizon'] or self.spec.horizon
         self.limits = plan_limits(self.spec)
         window = self.engine.window
+        check_time_parameters(p)
         self.window = InputWindow(self.topic_map, window, self.spec.dt, p['max_gap'],
-                                  p['max_age'])
-        self.health = Health()
-        self.rejected = {'malformed': 0}
+                                  p['max_age'], p['max_future'], p['restart_span'],
+                                  Plausibility(self.topic_map, p['quaternion_tolerance']))
+        self.health = Health(silence_error=self._silence_error(p), max_age=p['max_age'],
+                             rejection_warn_fraction=p['rejection_warn_fraction'])
+        # Guards the window, the pending state, the plan and the counters, which the
+        # input, forecast, service and clock threads share; held only briefly.
+        self.lock = threading.Lock()
+        # One what-if batch at a time: the engine already spreads a batch over the cores.
+        self.batch_lock = threading.Lock()
+        self.service_slots = threading.BoundedSemaphore(p['service_capacity'])
+        self.input_event = threading.Event()
+        self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
+                       0, 'clock_resets': 0, 'service_requests': 0, 'service_busy': 0,
+                       'service_failed': 0}
         self.last_forecast_t = -math.inf
-        self.latest_plan: ControlPlan | None = None
-        self.pending_ns: int | None = None   # arrival of a state awaiting its forecast
-        self.skipped_backlog = 0
-        self.sync_timer = None
+        self.latest_plan: tuple[float, dict] | None = None
+        self.pending: Pending | None = None
         started = time.perf_counter()
         self.engine.warm_up(self.horizon, window=window, max_batch=p['max_plans'])
         self.get_logger().info(
@@ -111,144 +147,245 @@ class PredictorNode(Node):
         self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        inputs = MutuallyExclusiveCallbackGroup()
         depth = p['input_queue_depth']
         self.readers = {}
         for topic, msg_class in input_types(self.topic_map).items():
             self.readers[topic] = channel_reader(self.topic_map, topic)
             self.create_subscription(msg_class, node_topic(topic),
-                                     partial(self._on_input, topic), depth)
-        self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10)
-        self.create_service(Predict, '~/predict', self._on_predict)
-        self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+                                     partial(self._on_input, topic), depth,
+                                     callback_group=inputs)
+        self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10,
+                                 callback_group=inputs)
+        self.forecast_trigger = self.create_guard_condition(
+            self._forecast_worker, callback_group=MutuallyExclusiveCallbackGroup())
+        # Every request is read and answered (success, failure or busy): reliable and
+        # keep-all, a burst of requests from many clients is queued, never overwritten
+        # (keep-last would drop the oldest unread ones silently).
+        service_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL,
+                                 reliability=ReliabilityPolicy.RELIABLE)
+        self.create_service(Predict, '~/predict', self._on_predict, qos_profile=service_qos,
+                            callback_group=ReentrantCallbackGroup())
+        self.diag_timer = self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
+                                            clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.jump_handle = None
+        self._watch_clock_jumps(p['restart_span'])
+        self.add_on_set_parameters_callback(self._check_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+
+    # ------------------------------------------------------------------ parameters
+    def _silence_error(self, p: dict) -> float:
+        # A forecast period of 0 forecasts every state: expect one per model step then.
+        return p['silence_error_periods'] * max(p['forecast_period'], self.spec.dt)
+
+    def _check_parameters(self, parameters) -> SetParametersResult:
+        values = dict(self.p, **{q.name: q.value for q in parameters})
+        try:
+            check_time_parameters(values)
+        except ValueError as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, parameters) -> None:
+        p = dict(self.p, **{q.name: q.value for q in parameters})
+        self.p = p
+        with self.lock:
+            self.window.configure(p['max_gap'], p['max_age'], p['max_future'],
+                                  p['restart_span'])
+            self.window.plausibility.quaternion_tolerance = p['quaternion_tolerance']
+            self.health.silence_error = self._silence_error(p)
+            self.health.max_age = p['max_age']
+            self.health.rejection_warn_fraction = p['rejection_warn_fraction']
+        self.diag_timer.timer_period_ns = int(p['diagnostics_period'] * 1e9)
+        if any(q.name == 'restart_span' for q in parameters):
+            self._watch_clock_jumps(p['restart_span'])
+        self.get_logger().info('parameters set: ' + ', '.join(
+            f'{q.name}={q.value}' for q in parameters))
+
+    def _watch_clock_jumps(self, span: float) -> None:
+        # The node's clock (ROS time with use_sim_time) going back more than restart_span
+        # means /clock restarted: the window holds samples of another time line.
+        threshold = JumpThreshold(min_forward=None, min_backward=Duration(
+            nanoseconds=-int(span * 1e9)), on_clock_change=True)
+        if self.jump_handle is not None:
+            self.jump_handle.unregister()
+        self.jump_handle = self.get_clock().create_jump_callback(
+            threshold, post_callback=self._on_clock_jump)
+
+    def _on_clock_jump(self, jump) -> None:
+        with self.lock:
+            self.window.clear()
+            self.last_forecast_t = -math.inf
+            self.pending = None
+            self.health.clock_jumped(self._now())
+            self.counts['clock_resets'] += 1
+        self.get_logger().warning(f'clock jumped by {jump.delta.nanoseconds * 1e-9:.1f} s: '
+                                  f'window cleared')
 
     # ------------------------------------------------------------------ inputs
-    def _push(self, stream: str, stamp, values) -> bool:
-        reason = self.window.push(stream, messages.seconds_from_stamp(stamp), values)
-        if reason:
-            self.get_logger().warning(f'rejected input: {reason}', throttle_duration_sec=5.0)
-        return reason is None
-
     def _on_input(self, topic: str, msg, info=None) -> None:
         try:
             values = self.readers[topic](msg)
         except (AttributeError, IndexError, TypeError, ValueError) as exc:
-            self.rejected['malformed'] += 1
+            with self.lock:
+                self.counts['malformed_inputs'] += 1
             self.get_logger().warning(f'rejected {topic}: {exc}', throttle_duration_sec=5.0)
             return
         # Types without a header are timed on arrival, as offline conversion does.
-        stamp = msg.header.stamp if hasattr(msg, 'header') else \
-            self.get_clock().now().to_msg()
-        if not self._push(topic, stamp, values):
+        header = getattr(msg, 'header', None)
+        now = self._now()
+        t = messages.seconds_from_stamp(header.stamp) if header is not None else now
+        with self.lock:
+            restarts = self.window.restarts
+            reason = self.window.push(topic, t, values, now,
+                                      None if header is None else header.frame_id)
+            if self.window.restarts != restarts:
+                self.last_forecast_t = -math.inf
+            if not reason:
+                self.health.record_input(now)
+        if reason:
+            self.get_logger().warning(f'rejected input: {reason}', throttle_duration_sec=5.0)
             return
         if topic == self.window.state_topic:
-            self._on_state(messages.seconds_from_stamp(stamp), info)
-        else:
-            self._forecast_when_synced()
+            self._on_state(t, info)
+        self.input_event.set()
 
     def _on_state(self, t: float, info) -> None:
-        if t - self.last_forecast_t < self.p['forecast_period']:
-            return
-        received_ns = (info or {}).get('received_timestamp') or time.time_ns()
-        self.pending_ns = received_ns
-        if (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']:
+        with self.lock:
+            last = self.last_forecast_t
+            if t - last < self.p['forecast_period'] and t >= last:
+                return
+            received_ns = (info or {}).get('received_timestamp') or time.time_ns()
             # A message that waited in the queue: newer ones are probably behind it.
-            # Read on, and forecast once from the latest window when the queue is empty.
-            self.skipped_backlog += 1
-            self._arm_timer(self.p['backlog_skip'])
-            return
-        self._forecast_when_synced()
-
-    def _forecast_when_synced(self) -> None:
-        # A sample's actuators and wind may arrive just after its state: wait for them
-        # (up to sync_timeout) so the forecast never holds the previous second's controls.
-        if self.pending_ns is None:
-            return
-        t_state = self.window.streams[self.window.state_topic].latest_time
-        if all((stream.latest_time or -math.inf) >= t_state
-               for stream in self.window.streams.values()):
-            self._forecast_pending()
-        else:
-            self._arm_timer(self.p['sync_timeout'])
-
-    def _arm_timer(self, seconds: float) -> None:
-        if self.sync_timer is None:
-            self.sync_timer = self.create_timer(seconds, self._forecast_pending,
-                                                clock=Clock(clock_type=ClockType.STEADY_TIME))
-
-    def _forecast_pending(self) -> None:
-        if self.sync_timer is not None:
-            self.destroy_timer(self.sync_timer)
-            self.sync_timer = None
-        received_ns, self.pending_ns = self.pending_ns, None
-        if received_ns is not None:
-            self._forecast_and_publish(received_ns)
+            backlogged = (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']
+            self.counts['states_skipped_as_backlog'] += backlogged
+            self.pending = Pending(t, received_ns, backlogged)
+        self.forecast_trigger.trigger()
 
     def _on_plan(self, msg: ControlPlan) -> None:
-        self.latest_plan = msg
+        if self.limits is None:
+            self.get_logger().warning(f'ignoring {PLAN_TOPIC}: {self._no_plans()}',
+                                      throttle_duration_sec=5.0)
+            return
+        try:
+            fields = check_plan(plan_fields(msg), self.horizon, self.limits, exact=False)
+        except PlanError as exc:
+            with self.lock:
+                self.counts['plans_rejected'] += 1
+            self.get_logger().warning(f'rejected {PLAN_TOPIC}: {exc}',
+                                      throttle_duration_sec=5.0)
+            return
+        with self.lock:
+            self.latest_plan = (messages.seconds_from_stamp(msg.header.stamp), fields)
 
     # ------------------------------------------------------------------ forecasting
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
+    def _synced(self, t_state: float) -> bool:
+        # A sample's actuators and wind may arrive just after its state.
+        return all((stream.latest_time or -math.inf) >= t_state
+                   for stream in self.window.streams.values())
+
+    def _forecast_worker(self) -> None:
+        """Forecast the pending state once its sample is complete or the wait is over."""
+        started = time.monotonic()
+        while True:
+            with self.lock:
+                pending = self.pending
+                if pending is None:
+                    return
+                synced = self._synced(pending.t)
+            self.input_event.clear()
+            if pending.backlogged:
+                # Read a burst through first, then forecast once from the latest window
+                # (at the latest one forecast period after the first backlogged state).
+                wait = min(self.p['backlog_skip'],
+                           started + self.p['forecast_period'] - time.monotonic())
+                if wait > 0 and self.input_event.wait(wait):
+                    continue
+            elif not synced:
+                wait = started + self.p['sync_timeout'] - time.monotonic()
+                if wait > 0:
+                    self.input_event.wait(wait)
+                    continue
+            break
+        with self.lock:
+            pending, self.pending = self.pending, None
+            if pending is None:
+                return
+            self.last_forecast_t = max(self.last_forecast_t, pending.t)
+            result = self._window()
+            plan = self.latest_plan
+        if result.ready:
+            self._forecast_and_publish(result, plan, pending.received_ns)
+
     def _window(self):
         result = self.window.assemble(self._now())
-        self.health.record_window(result.status, result.reason, result.fill, result.age)
+        self.health.record_window(result.status, result.reason, result.fill)
         return result
 
-    def _future_controls(self, result) -> np.ndarray:
-        plan = self.latest_plan
-        if plan is not None and self.limits is None:
-            self.get_logger().warning(f'ignoring {PLAN_TOPIC}: {self._no_plans()}',
-                                      throttle_duration_sec=5.0)
-        elif plan is not None:
-            age = result.t_end - messages.seconds_from_stamp(plan.header.stamp)
+    def _future_controls(self, result, plan) -> np.ndarray:
+        if plan is not None:
+            stamp, fields = plan
+            age = result.t_end - stamp
             if 0.0 <= age <= self.p['plan_timeout']:
                 shift = int(round(age / self.spec.dt))
-                fields = {f: np.asarray(getattr(plan, f))[shift:shift + self.horizon]
-                          for f in PLAN_FIELDS}
                 try:
-                    return plan_controls(fields, result.controls[-1], self.horizon,
-                                         self.limits)[None]
+                    return plan_controls({f: v[shift:shift + self.horizon]
+                                          for f, v in fields.items()},
+                                         result.controls[-1], self.horizon, self.limits)[None]
                 except PlanError as exc:
-                    self.get_logger().warning(f'ignoring {PLAN_TOPIC}: {exc}',
+                    self.get_logger().warning(f'ignoring {PLAN_TOPIC} from {age:.1f} s '
+                                              f'before the forecast: {exc}',
                                               throttle_duration_sec=5.0)
         return hold_latest(result.controls[-1], self.horizon)
 
-    def _forecast_and_publish(self, received_ns: int) -> None:
-        result = self._window()
-        if not result.ready:
-            return
+    def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
         forecast = self.engine.forecast(result.states, result.controls,
-                                        self._future_controls(result))
-        msg = self._forecast_message(result, forecast.hybrid[0], forecast.physics[0])
+                                        self._future_controls(result, plan))
+        (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics)
+        problem = self._withheld(forecast.hybrid, msg)
+        if problem:
+            with self.lock:
+                self.health.record_withheld(problem)
+            self.get_logger().error(f'forecast withheld: {problem}', throttle_duration_sec=5.0)
+            return
         self.forecast_pub.publish(msg)
-        self.last_forecast_t = result.t_end
         latency_ms = (time.time_ns() - received_ns) * 1e-6
-        self.health.record_forecast(latency_ms, bound_hit_fraction(
-            forecast.hybrid, forecast.physics, self.engine.bound))
+        with self.lock:
+            self.health.record_forecast(self._now(), latency_ms, bound_hit_fraction(
+                forecast.hybrid, forecast.physics, self.engine.bound))
         self.path_pub.publish(self._path_message(msg))
 
-    def _forecast_message(self, result, hybrid: np.ndarray, physics: np.ndarray) -> Forecast:
-        north, east, psi = track(hybrid, result.pose, self.spec)
+    def _withheld(self, hybrid: np.ndarray, msg: Forecast) -> str | None:
+        return forecast_problem(hybrid, (np.asarray(msg.x), np.asarray(msg.y),
+                                         np.asarray(msg.heading)), self.spec)
+
+    def _forecast_messages(self, result, hybrid: np.ndarray, physics: np.ndarray,
+                           ) -> list[Forecast]:
+        """Return one Forecast per plan of a batch, hybrid and physics (plans, H, n)."""
+        north, east, psi = track(hybrid, result.pose, self.spec)   # one pass, all plans
         x_enu, y_enu, _ = frames.position_ned_to_enu(north, east)
-        msg = Forecast()
-        msg.header.stamp = messages.stamp_from_seconds(result.t_end)
-        msg.header.frame_id = self.p['world_frame']
-        msg.step_period = float(self.spec.dt)
-        msg.horizon = self.horizon
-        msg.state_names = list(self.spec.state_names)
-        msg.state_units = list(self.spec.state_units)
-        msg.vessel = self.spec.name
-        msg.control_names = list(self.spec.control_names)
-        # Typed arrays: rclpy checks a list element by element, an array('d') at once.
-        msg.hybrid = array('d', hybrid.ravel())
-        msg.physics = array('d', physics.ravel())
-        msg.residual_bound = array('d', self.engine.bound)
-        msg.x, msg.y = array('d', x_enu), array('d', y_enu)
-        msg.heading = array('d', frames.heading_ned_to_enu(psi))
-        msg.model_id = self.engine.model_id
-        return msg
+        heading = frames.heading_ned_to_enu(psi)
+        out = []
+        for i in range(len(hybrid)):
+            msg = Forecast()
+            msg.header.stamp = messages.stamp_from_seconds(result.t_end)
+            msg.header.frame_id = self.p['world_frame']
+            msg.step_period = float(self.spec.dt)
+            msg.horizon = self.horizon
+            msg.state_names = list(self.spec.state_names)
+            msg.state_units = list(self.spec.state_units)
+            msg.vessel = self.spec.name
+            msg.control_names = list(self.spec.control_names)
+            msg.hybrid, msg.physics = doubles(hybrid[i]), doubles(physics[i])
+            msg.residual_bound = doubles(self.engine.bound)
+            msg.x, msg.y, msg.heading = doubles(x_enu[i]), doubles(y_enu[i]), doubles(
+                heading[i])
+            msg.model_id = self.engine.model_id
+            out.append(msg)
+        return out
 
     def _path_message(self, forecast: Forecast) -> PathMsg:
         path = PathMsg()
@@ -273,54 +410,108 @@ class PredictorNode(Node):
                 f'latest controls are made')
 
     def _on_predict(self, request, response):
-        plans = request.plans
-        if not 1 <= len(plans) <= self.p['max_plans']:
+        with self.lock:
+            self.counts['service_requests'] += 1
+        if not self.service_slots.acquire(blocking=False):
+            with self.lock:
+                self.counts['service_busy'] += 1
             response.success = False
-            response.message = f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}'
-            return response
-        if self.limits is None:
-            response.success = False
-            response.message = self._no_plans()
-            return response
-        result = self._window()
-        if not result.ready:
-            response.success = False
-            response.message = f'no forecast: {result.reason}'
+            response.message = (f'busy: {self.p["service_capacity"]} requests in progress; '
+                                f'retry later')
             return response
         try:
-            future = np.stack([
-                plan_controls({f: np.asarray(getattr(plan, f)) for f in PLAN_FIELDS},
-                              result.controls[-1], self.horizon, self.limits, index=i)
-                for i, plan in enumerate(plans)])
-        except PlanError as exc:
-            response.success = False
-            response.message = str(exc)
-            return response
-        forecast = self.engine.forecast(result.states, result.controls, future)
-        response.forecasts = [self._forecast_message(result, forecast.hybrid[i],
-                                                     forecast.physics[i])
-                              for i in range(len(plans))]
-        response.success = True
-        response.message = f'{len(plans)} forecasts from the window ending at ' \
-                           f'{result.t_end:.3f} s'
+            response.success, response.message, response.forecasts = self._predict(
+                request.plans)
+        except Exception as exc:  # noqa: BLE001 - a request must never stop the node
+            self.get_logger().error(f'~/predict failed: {exc!r}')
+            response.success, response.message = False, f'internal error: {exc}'
+        finally:
+            self.service_slots.release()
+        if not response.success:
+            response.forecasts = []
+            with self.lock:
+                self.counts['service_failed'] += 1
         return response
+
+    def _predict(self, plans) -> tuple[bool, str, list]:
+        """Return (success, message, forecasts) for a request's plans."""
+        if not 1 <= len(plans) <= self.p['max_plans']:
+            return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', []
+        if self.limits is None:
+            return False, self._no_plans(), []
+        try:   # every plan, as a whole, before any window or model work
+            fields = [check_plan(plan_fields(plan), self.horizon, self.limits, index=i)
+                      for i, plan in enumerate(plans)]
+        except PlanError as exc:
+            return False, str(exc), []
+        with self.lock:
+            result = self._window()
+        if not result.ready:
+            return False, f'no forecast: {result.reason}', []
+        future = np.stack([plan_controls(f, result.controls[-1], self.horizon, self.limits,
+                                         index=i) for i, f in enumerate(fields)])
+        with self.batch_lock:
+            forecast = self.engine.forecast(result.states, result.controls, future)
+        out = self._forecast_messages(result, forecast.hybrid, forecast.physics)
+        for i, msg in enumerate(out):
+            problem = self._withheld(forecast.hybrid[i], msg)
+            if problem:
+                return False, f'plan {i}: forecast withheld: {problem}', []
+        return True, f'{len(plans)} forecasts from the window ending at ' \
+                     f'{result.t_end:.3f} s', out
 
     # ------------------------------------------------------------------ health
     def _publish_diagnostics(self) -> None:
-        rejected = dict(self.rejected)
-        for stream in self.window.streams.values():
-            counts = stream.counts
-            for reason in ('non_finite', 'duplicate', 'out_of_order', 'incomplete'):
-                value = getattr(counts, reason)
-                rejected[reason] = rejected.get(reason, 0) + value
-        level, message, values = self.health.report(rejected)
-        values['states_skipped_as_backlog'] = str(self.skipped_backlog)
+        with self.lock:
+            counts = dict(self.counts)
+            rejected = self.window.rejected_counts()
+            accepted = sum(s.counts.accepted for s in self.window.streams.values())
+            rejected['malformed'] = counts.pop('malformed_inputs')
+            newest = self.window.streams[self.window.state_topic].latest_time
+            level, message, values = self.health.report(self._now(), newest, accepted,
+                                                        rejected)
+            counts['source_restarts'] = self.window.restarts
+        values.update({k: str(v) for k, v in counts.items()})
         status = DiagnosticStatus(level=bytes([level]), name=f'{self.get_name()}: forecast',
                                   message=message, hardware_id=self.engine.model_id)
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         diag = DiagnosticArray(status=[status])
         diag.header.stamp = self.get_clock().now().to_msg()
         self.diag_pub.publish(diag)
+
+
+def check_time_parameters(p: dict) -> None:
+    """Raise ValueError unless the time parameters fit together (ranges are the YAML's)."""
+    if p['restart_span'] < p['max_age']:
+        raise ValueError(f'restart_span ({p["restart_span"]:g} s) must be at least max_age '
+                         f'({p["max_age"]:g} s): a fresh sample is never a restart')
+
+
+def doubles(values) -> array:
+    """
+    Return values as a flat array('d') for a float64[] message field.
+
+    rclpy checks a list element by element, an array('d') at once; filling it from the
+    bytes of a NumPy array is a copy, where array('d', ndarray) converts every element.
+    """
+    out = array('d')
+    out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return out
+
+
+def plan_fields(plan: ControlPlan) -> dict:
+    """Return a ControlPlan's fields as arrays, by field name."""
+    return {f: np.asarray(getattr(plan, f)) for f in PLAN_FIELDS}
+
+
+def executor_for(node: PredictorNode) -> MultiThreadedExecutor:
+    """
+    Return the executor the predictor spins in.
+
+    One thread per admitted request, plus one each for inputs, forecasting, the default
+    group and the "busy" answers, so no group ever waits for a free thread.
+    """
+    return MultiThreadedExecutor(num_threads=node.p['service_capacity'] + 4)
 
 
 def input_types(topic_map) -> dict:
@@ -352,7 +543,8 @@ def plan_limits(vessel) -> ActuatorLimits | None:
 def main(args=None) -> int:
     """Run the predictor until interrupted; exit 2 with one line on a bad model or value."""
     return run_node(PredictorNode, NODE_NAME, (CheckpointError, FileNotFoundError,
-                                               ValueError, VesselError, TopicMapError), args)
+                                               ValueError, VesselError, TopicMapError), args,
+                    executor_for)
 
 
 if __name__ == '__main__':

@@ -38,36 +38,63 @@ def hold_latest(latest_control: np.ndarray, horizon: int) -> np.ndarray:
     return np.broadcast_to(latest_control, (1, horizon, latest_control.shape[-1])).copy()
 
 
-def plan_controls(plan: dict[str, np.ndarray], latest_control: np.ndarray, horizon: int,
-                  limits: ActuatorLimits, index: int = 0) -> np.ndarray:
+def check_plan(plan: dict[str, np.ndarray], horizon: int, limits: ActuatorLimits,
+               index: int = 0, exact: bool = True) -> dict[str, np.ndarray]:
     """
-    Return one plan's future controls (horizon, 6), or raise PlanError.
+    Validate a whole plan before any array work; return its fields as float arrays.
 
-    ``plan`` maps the field names of hybrid_predictor_interfaces/ControlPlan to arrays;
-    the actuator fields must have exactly ``horizon`` entries; the wind fields either
-    ``horizon`` entries each or none (the latest measured wind holds).
+    ``plan`` maps the field names of hybrid_predictor_interfaces/ControlPlan to arrays.
+    The actuator fields must all have the same length: exactly ``horizon`` entries
+    (``exact``), or at least ``horizon`` (a plan on the topic, which may start before
+    the forecast does). The wind fields are given together with that length or both
+    left empty (documented default: the latest measured wind holds). Every value must
+    be finite and inside the actuator limits; wind speed is >= 0. Raise PlanError.
     """
     where = f'plan {index}'
     arrays = {}
     for name in ACTUATOR_FIELDS + WIND_FIELDS:
-        values = np.asarray(plan.get(name, ()), dtype=float).reshape(-1)
-        if name in ACTUATOR_FIELDS or len(values):
-            if len(values) != horizon:
-                raise PlanError(f'{where}: {name} has {len(values)} entries, need {horizon}')
-            bad = np.flatnonzero(~np.isfinite(values))
-            if len(bad):
-                raise PlanError(f'{where}: {name}[{bad[0]}] is {values[bad[0]]}')
-        arrays[name] = values
+        try:
+            arrays[name] = np.asarray(plan.get(name, ()), dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            raise PlanError(f'{where}: {name} is not a sequence of numbers') from None
+    length = len(arrays[ACTUATOR_FIELDS[0]])
+    if length != horizon if exact else length < horizon:
+        need = horizon if exact else f'at least {horizon}'
+        raise PlanError(f'{where}: {ACTUATOR_FIELDS[0]} has {length} entries, need {need}')
+    wind = [len(arrays[name]) for name in WIND_FIELDS]
+    if wind != [0, 0] and wind != [length, length]:
+        raise PlanError(f'{where}: {WIND_FIELDS[0]} has {wind[0]} entries and '
+                        f'{WIND_FIELDS[1]} {wind[1]}; give both with {length} entries '
+                        f'each, or neither (the latest measured wind then holds)')
+    for name, values in arrays.items():
+        if len(values) != length and name in ACTUATOR_FIELDS:
+            raise PlanError(f'{where}: {name} has {len(values)} entries, need {length} '
+                            f'(as {ACTUATOR_FIELDS[0]})')
+        bad = np.flatnonzero(~np.isfinite(values))
+        if len(bad):
+            raise PlanError(f'{where}: {name}[{bad[0]}] is {values[bad[0]]}')
     if np.any(arrays['shaft_speed'] < 0) or np.any(arrays['shaft_speed'] > limits.shaft_max):
         raise PlanError(f'{where}: shaft_speed outside [0, {limits.shaft_max:.4g}] rad/s')
     for name in ('rudder_port', 'rudder_stbd'):
         if np.any(np.abs(arrays[name]) > limits.rudder_max):
             raise PlanError(f'{where}: {name} outside +-{limits.rudder_max:.4g} rad')
+    if np.any(arrays['wind_speed'] < 0):
+        raise PlanError(f'{where}: wind_speed must be >= 0')
+    return arrays
+
+
+def plan_controls(plan: dict[str, np.ndarray], latest_control: np.ndarray, horizon: int,
+                  limits: ActuatorLimits, index: int = 0) -> np.ndarray:
+    """
+    Return one plan's future controls (horizon, 6), or raise PlanError.
+
+    The plan is validated as a whole first (``check_plan`` with exactly ``horizon``
+    entries); only a valid plan is turned into the model's control matrix.
+    """
+    arrays = check_plan(plan, horizon, limits, index)
     out = np.empty((horizon, 6))
     out[:, 0], out[:, 1], out[:, 2] = (arrays[n] for n in ACTUATOR_FIELDS)
     if len(arrays['wind_speed']):
-        if np.any(arrays['wind_speed'] < 0):
-            raise PlanError(f'{where}: wind_speed must be >= 0')
         out[:, 3] = arrays['wind_speed']
         out[:, 4] = np.cos(arrays['wind_direction'])
         out[:, 5] = np.sin(arrays['wind_direction'])

@@ -13,7 +13,7 @@ from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
 
 def run_node(make_node: Callable, program: str, expected_errors: tuple = (),
-             args=None) -> int:
+             args=None, make_executor: Callable | None = None) -> int:
     """
     Create a node with ``make_node()``, spin it, and shut down cleanly; return an exit code.
 
@@ -24,12 +24,14 @@ def run_node(make_node: Callable, program: str, expected_errors: tuple = (),
     the program with one line ``PROGRAM: error: ...`` and exit code 2. A signal that
     lands while a callback is publishing makes that publish fail on the already shut
     down context; such an error is part of stopping, not a fault, and exits 0.
+    ``make_executor(node)`` gives the executor to spin in (default: rclpy's
+    single-threaded one).
     """
     rclpy.init(args=args)
     node = None
     try:
         node = make_node(namespace=DEFAULT_NAMESPACE)
-        rclpy.spin(node)
+        rclpy.spin(node, make_executor(node) if make_executor else None)
     except (InvalidParameterValueException, *expected_errors) as exc:
         print(f'{program}: error: {exc}', file=sys.stderr)
         return 2

@@ -1,0 +1,269 @@
+"""
+Service soak: concurrent what-if clients against a forecasting predictor, over DDS.
+
+Starts the simulator (``--rtf`` times real time) and the predictor as processes, waits
+for the first forecast, then for ``--duration`` seconds keeps ``--concurrency``
+requests of ``--plans`` plans in flight from each of ``--clients`` clients, while it
+listens to /vessel/forecast. A client answered "busy" waits ``--busy-backoff`` seconds
+before it sends again, as a well-behaved client does. Figures: requests sent, answered
+(success, busy or another failure) and never answered; p50/p99 latency; forecasts
+published during the soak and the longest silence between them, in message time
+(forecast periods) and wall time; the predictor's resident memory at the start, after
+the warm-up (the first tenth of the soak, at most 60 s: buffers and caches filling)
+and at the end.
+"""
+
+from __future__ import annotations
+
+from array import array
+import os
+from pathlib import Path
+import signal
+import subprocess
+import threading
+import time
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parents[2]
+INSTALL = REPO / 'ros2_ws' / 'install'
+GOALS = {'answered_percent': '== 100', 'longest_silence_periods': '<= 2',
+         'rss_growth_percent': '< 5 (over 10 minutes)'}
+HORIZON = 900
+WINDOW_S = 60.0   # the patrol boat's window: the simulator must run this long first
+# Fast DDS hands every client of a service the responses to all of them, each
+# client filtering its own: the response queue must hold all requests in flight.
+RESPONSE_DEPTH = 1000
+
+
+def add_arguments(parser) -> None:
+    """Declare this suite's options."""
+    parser.add_argument('--duration', type=float, default=600.0,
+                        help='seconds of load (default 600)')
+    parser.add_argument('--clients', type=int, default=4, help='client nodes (default 4)')
+    parser.add_argument('--concurrency', type=int, default=8,
+                        help='requests each client keeps in flight (default 8)')
+    parser.add_argument('--plans', type=int, default=64,
+                        help='control plans per request (default 64)')
+    parser.add_argument('--rtf', type=float, default=1.0,
+                        help='simulator speed, times real time (default 1: a vessel)')
+    parser.add_argument('--forecast-period', type=float, default=1.0,
+                        help="the predictor's forecast_period, s of message time (default 1)")
+    parser.add_argument('--busy-backoff', type=float, default=0.2,
+                        help='seconds a client waits after a busy answer (default 0.2)')
+    parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
+                        help='another predictor parameter (repeatable)')
+
+
+def run(args) -> dict:
+    """Run the soak with the command line's figures; return the JSON-ready result."""
+    return soak(args.duration, args.clients, args.concurrency, args.plans, args.rtf,
+                args.forecast_period, args.busy_backoff, predictor_params=args.param)
+
+
+def rss_mb(pid: int) -> float:
+    """Resident memory of a process (MB), from /proc."""
+    for line in Path(f'/proc/{pid}/status').read_text().splitlines():
+        if line.startswith('VmRSS:'):
+            return int(line.split()[1]) / 1024.0
+    raise RuntimeError(f'no VmRSS for process {pid}')
+
+
+def start(package: str, executable: str, *params: str, log: Path) -> subprocess.Popen:
+    """Start an installed node executable in its own process group, output to ``log``."""
+    argv = [str(INSTALL / package / 'lib' / package / executable), '--ros-args']
+    for p in params:
+        argv += ['-p', p]
+    with open(log, 'wb') as out:
+        return subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT,
+                                start_new_session=True, cwd=REPO)
+
+
+def stop(process: subprocess.Popen) -> None:
+    """Stop a process group: SIGINT, then SIGKILL."""
+    for sig in (signal.SIGINT, signal.SIGKILL):
+        if process.poll() is not None:
+            return
+        os.killpg(process.pid, sig)
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            continue
+
+
+def make_plans(count: int, seed: int = 0):
+    """Return ``count`` ControlPlans of steady shaft and rudder variations."""
+    from hybrid_predictor_interfaces.msg import ControlPlan
+
+    rng = np.random.default_rng(seed)
+    plans = []
+    for _ in range(count):
+        rudder = float(rng.uniform(-0.2, 0.2))
+        plans.append(ControlPlan(shaft_speed=array('d', [float(rng.uniform(60, 100))] * HORIZON),
+                                 rudder_port=array('d', [rudder] * HORIZON),
+                                 rudder_stbd=array('d', [rudder] * HORIZON)))
+    return plans
+
+
+class Load:
+    """Clients that keep requests in flight and count what comes back."""
+
+    def __init__(self, node, clients: int, concurrency: int, plans: int,
+                 busy_backoff: float):
+        from rclpy.qos import QoSProfile
+
+        from hybrid_predictor_interfaces.srv import Predict
+
+        qos = QoSProfile(depth=max(RESPONSE_DEPTH, 2 * clients * concurrency))
+        self.busy_backoff = busy_backoff
+        self.clients = [node.create_client(Predict, '/vessel/predictor/predict', qos_profile=qos)
+                        for _ in range(clients)]
+        self.request = Predict.Request(plans=make_plans(plans))
+        self.concurrency = concurrency
+        self.lock = threading.Lock()
+        self.sent = self.success = self.busy = self.failed = 0
+        self.latencies: list[float] = []
+        self.success_latencies: list[float] = []
+        self.failures: dict[str, int] = {}
+        self.deadline = 0.0
+
+    def begin(self, seconds: float) -> None:
+        """Start every client's requests; new ones are sent for ``seconds``."""
+        self.deadline = time.monotonic() + seconds
+        for client in self.clients:
+            for _ in range(self.concurrency):
+                self._send(client)
+
+    def _send(self, client) -> None:
+        with self.lock:
+            self.sent += 1
+        sent_at = time.monotonic()
+        future = client.call_async(self.request)
+        future.add_done_callback(lambda f: self._answered(client, f, sent_at))
+
+    def _answered(self, client, future, sent_at: float) -> None:
+        response = future.result()
+        busy = not response.success and response.message.startswith('busy')
+        with self.lock:
+            self.latencies.append(time.monotonic() - sent_at)
+            if response.success:
+                self.success += 1
+                self.success_latencies.append(time.monotonic() - sent_at)
+            elif busy:
+                self.busy += 1
+            else:
+                self.failed += 1
+                key = response.message[:60]
+                self.failures[key] = self.failures.get(key, 0) + 1
+        if time.monotonic() >= self.deadline:
+            return
+        if busy and self.busy_backoff > 0:
+            threading.Timer(self.busy_backoff, self._send, [client]).start()
+        else:
+            self._send(client)
+
+    @property
+    def answered(self) -> int:
+        """Return the number of requests answered in any way."""
+        return self.success + self.busy + self.failed
+
+
+def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float,
+         forecast_period: float = 1.0, busy_backoff: float = 0.2,
+         log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
+    """Run the soak (see the module docstring) and return its figures."""
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge.messages import seconds_from_stamp
+
+    log_dir = Path(log_dir or REPO / 'ros2_ws' / 'log' / 'soak')
+    log_dir.mkdir(parents=True, exist_ok=True)
+    sim = start('ship_sim_node', 'simulator', 'seed:=5', f'real_time_factor:={rtf}',
+                log=log_dir / 'simulator.log')
+    predictor = start('hybrid_predictor', 'predictor', 'use_sim_time:=true',
+                      f'max_plans:={max(plans, 1)}', f'forecast_period:={forecast_period}',
+                      *predictor_params, log=log_dir / 'predictor.log')
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('soak_client', context=context)
+    executor = MultiThreadedExecutor(num_threads=4, context=context)
+    executor.add_node(node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    forecasts: list[tuple[float, float]] = []   # (wall s, stamp s)
+    node.create_subscription(Forecast, '/vessel/forecast', lambda m: forecasts.append(
+        (time.monotonic(), seconds_from_stamp(m.header.stamp))), 50)
+    load = Load(node, clients, concurrency, plans, busy_backoff)
+    spinner.start()
+    try:
+        deadline = time.monotonic() + 180 + WINDOW_S / rtf
+        while not forecasts and time.monotonic() < deadline:
+            if predictor.poll() is not None:
+                raise RuntimeError(f'predictor exited; see {log_dir / "predictor.log"}')
+            time.sleep(0.2)
+        if not forecasts:
+            raise RuntimeError('no forecast within 180 s after the first window')
+        for client in load.clients:
+            client.wait_for_service(timeout_sec=30)
+        rss_start = rss_mb(predictor.pid)
+        started = time.monotonic()
+        load.begin(duration)
+        warm_at, rss_warm = started + min(0.1 * duration, 60.0), None
+        while time.monotonic() < started + duration:
+            time.sleep(0.2)
+            if rss_warm is None and time.monotonic() >= warm_at:
+                rss_warm = rss_mb(predictor.pid)
+        ended = time.monotonic()
+        rss_end = rss_mb(predictor.pid)
+        # Every request sent must come back; give the last ones time to.
+        settle = time.monotonic() + 30
+        while load.answered < load.sent and time.monotonic() < settle:
+            time.sleep(0.1)
+        alive = predictor.poll() is None
+    finally:
+        executor.shutdown(timeout_sec=5)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        stop(predictor)
+        stop(sim)
+    during = [(w, s) for w, s in forecasts if started <= w <= ended]
+    walls = np.array([w for w, _ in during] or [started])
+    stamps = np.array([s for _, s in during])
+    wall_gaps = np.diff(np.concatenate([[started], walls, [ended]]))
+    stamp_gaps = np.diff(stamps) if len(stamps) > 1 else np.array([np.inf])
+    latencies = np.asarray(load.latencies) * 1e3
+    successes = np.asarray(load.success_latencies) * 1e3
+    return {
+        'duration_s': round(ended - started, 1),
+        'clients': clients, 'concurrency': concurrency, 'plans_per_request': plans,
+        'simulator_rtf': rtf, 'busy_backoff_s': busy_backoff,
+        'requests_sent': load.sent,
+        'requests_answered': load.answered,
+        'requests_success': load.success,
+        'requests_busy': load.busy,
+        'requests_failed_other': load.failed,
+        'failures': load.failures,
+        'requests_unanswered': load.sent - load.answered,
+        'answered_percent': round(100.0 * load.answered / max(load.sent, 1), 3),
+        'latency_p50_ms': round(float(np.percentile(latencies, 50)), 1) if len(
+            latencies) else None,
+        'latency_p99_ms': round(float(np.percentile(latencies, 99)), 1) if len(
+            latencies) else None,
+        'success_latency_p50_ms': round(float(np.percentile(successes, 50)), 1) if len(
+            successes) else None,
+        'success_latency_p99_ms': round(float(np.percentile(successes, 99)), 1) if len(
+            successes) else None,
+        'forecasts_published': len(during),
+        'longest_silence_periods': round(float(stamp_gaps.max()) / forecast_period, 2),
+        'longest_silence_wall_s': round(float(wall_gaps.max()), 3),
+        'forecast_period_wall_s': round(forecast_period / rtf, 3),
+        'rss_start_mb': round(rss_start, 1),
+        'rss_after_warm_up_mb': round(rss_warm or rss_end, 1),
+        'rss_end_mb': round(rss_end, 1),
+        'rss_growth_percent': round(100.0 * (rss_end - rss_start) / rss_start, 2),
+        'rss_growth_after_warm_up_percent': round(
+            100.0 * (rss_end - (rss_warm or rss_end)) / (rss_warm or rss_end), 2),
+        'predictor_alive': alive,
+        'goals': GOALS,
+    }

@@ -1,0 +1,127 @@
+"""
+Physical plausibility of one input sample, from the vessel description (no ROS).
+
+A finite value can still be absurd (a surge of 10^6 m/s, a quaternion of norm 7). Each
+sample is checked, in the model's quantities, against what the vessel file declares:
+
+- body velocities (surge, sway, roll and yaw rate, turned into FRD ``u, v, p, r`` by
+  ``vessel_physics.frames``) and the roll angle ``phi`` against ``limits`` of the
+  vessel file ("plausible ranges of the states; samples outside are spikes");
+- every actuator against its declared ``range`` (shaft speed, rudder angles);
+- an orientation quaternion must have unit norm within ``quaternion_tolerance``;
+- a message whose values are frame-dependent (velocities, attitude, position, wind)
+  must name its frame: an empty ``frame_id`` is rejected (``no_frame_id``).
+
+A vessel file without a limit for one of its states is refused at start-up in one line:
+the predictor cannot tell a spike from a state without it. Heading, position and wind
+have no declared bounds and are only checked for being finite (by the window).
+``forecast_problem`` holds every forecast to the same limits before it is published.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from vessel_datasets.topic_map import ACTUATOR_PREFIX, TopicMap
+from vessel_description import VesselError
+from vessel_physics import frames
+
+QUATERNION = ('qx', 'qy', 'qz', 'qw')
+# Channels of a body-velocity group, in the argument order of frames.twist_flu_to_frd,
+# and the FRD state each becomes.
+BODY_CHANNELS = (('surge', 'u'), ('sway', 'v'), ('roll_rate', 'p'), ('yaw_rate', 'r'))
+# Groups whose values mean nothing without the frame they are given in.
+FRAMED_GROUPS = ('body_velocity', 'attitude', 'position', 'wind')
+
+
+class Plausibility:
+    """Checks of one vessel's input samples; ``check`` says why a sample is absurd."""
+
+    def __init__(self, topic_map: TopicMap, quaternion_tolerance: float):
+        vessel = topic_map.vessel
+        missing = [s for s in vessel.states if s not in vessel.limits]
+        if missing:
+            raise VesselError(f'vessel {vessel.name!r} ({vessel.source}): limits lack '
+                              f'{missing}; the predictor needs a plausible range for every '
+                              f'state to reject absurd inputs (docs/vessels.md)')
+        self.quaternion_tolerance = quaternion_tolerance
+        # channel -> (sign to the model's frame, model quantity, low, high)
+        self.bounds: dict[str, tuple[float, str, float, float]] = {}
+        if topic_map.frames.get('body_velocity') == 'flu':
+            signs = frames.twist_flu_to_frd(1.0, 1.0, 1.0, 1.0)
+        else:
+            signs = (1.0, 1.0, 1.0, 1.0)
+        for (channel, state), sign in zip(BODY_CHANNELS, signs, strict=True):
+            if state in vessel.states:
+                self.bounds[channel] = (sign, state, *vessel.limits[state])
+        if vessel.has_roll:
+            self.bounds['roll'] = (1.0, 'phi', *vessel.limits['phi'])
+        for actuator in vessel.actuators:
+            self.bounds[ACTUATOR_PREFIX + actuator.name] = (
+                1.0, actuator.name, actuator.low, actuator.high)
+        self.roll_limits = vessel.limits['phi'] if vessel.has_roll else None
+        self.enu = topic_map.frames.get('attitude') == 'enu_flu'
+        self.framed_topics = {leaf.topic for leaf in topic_map.leaves()
+                              if leaf.group in FRAMED_GROUPS}
+
+    def check(self, topic: str, values: dict[str, float],
+              frame_id: str | None) -> tuple[str, str] | None:
+        """
+        Return (reason, message) if a finite sample is absurd, else None.
+
+        ``values`` are the channels one message carries (after the map's scale);
+        ``frame_id`` is its header's frame, or None for a message without a header.
+        Reasons: ``no_frame_id``, ``bad_quaternion``, ``implausible``.
+        """
+        if frame_id == '' and topic in self.framed_topics:
+            return 'no_frame_id', f'{topic}: empty header.frame_id'
+        if all(c in values for c in QUATERNION):
+            reason = self._quaternion(topic, [values[c] for c in QUATERNION])
+            if reason:
+                return reason
+        for channel, value in values.items():
+            bound = self.bounds.get(channel)
+            if bound is None:
+                continue
+            sign, name, low, high = bound
+            if not low <= sign * value <= high:
+                return 'implausible', (f'{topic}: {name} = {sign * value:.6g} outside the '
+                                       f'vessel limits [{low:g}, {high:g}]')
+        return None
+
+    def _quaternion(self, topic: str, q: list[float]) -> tuple[str, str] | None:
+        norm = math.sqrt(sum(c * c for c in q))
+        if not abs(norm - 1.0) <= self.quaternion_tolerance:
+            return 'bad_quaternion', (f'{topic}: orientation quaternion has norm {norm:.6g}, '
+                                      f'not 1 +- {self.quaternion_tolerance:g}')
+        if self.roll_limits is None:
+            return None
+        unit = [c / norm for c in q]
+        convert = frames.orientation_enu_to_ned if self.enu else frames.euler_from_quaternion
+        phi = float(convert(*unit)[0])
+        low, high = self.roll_limits
+        if not low <= phi <= high:
+            return 'implausible', (f'{topic}: phi = {phi:.6g} outside the vessel limits '
+                                   f'[{low:g}, {high:g}]')
+        return None
+
+
+def forecast_problem(hybrid: np.ndarray, track: tuple[np.ndarray, ...], vessel) -> str | None:
+    """
+    Return why a forecast must be withheld, or None.
+
+    ``hybrid`` is (..., horizon, n_state) in the vessel's state order; ``track`` the
+    trajectory arrays (x, y, heading). Every value must be finite and every state inside
+    the vessel's ``limits`` (the same plausible ranges the inputs are held to).
+    """
+    if not np.isfinite(hybrid).all() or not all(np.isfinite(a).all() for a in track):
+        return 'non-finite values'
+    for i, name in enumerate(vessel.states):
+        low, high = vessel.limits[name]
+        column = hybrid[..., i]
+        worst = column.min() if column.min() < low else column.max()
+        if not low <= worst <= high:
+            return f'{name} reaches {worst:.6g}, outside the vessel limits [{low:g}, {high:g}]'
+    return None

@@ -1,0 +1,241 @@
+"""
+The predictor under hostile inputs and plans, over real DDS (issue #14).
+
+One predictor, fed live by this test process, serves every test of this module, in
+order: plans, absurd inputs, a future stamp, runtime parameters, silence (last: it
+stops the feeder). The test process spins its node in a background thread, so the
+feeder keeps publishing while a test waits. Restarts and load:
+test_predictor_restart_load.py.
+"""
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from .conftest import Graph, Launcher, wait_for
+from .test_predictor_node import Feeder
+
+pytestmark = pytest.mark.ros
+
+RATE_HZ = 5.0          # live input rate of the feeder
+WINDOW_S = 60.0        # the patrol boat's window
+SILENCE_PERIOD = 2.0   # forecast period during the silence test (s)
+BURST = 20000          # messages of the burst test
+BURST_SILENCE = 3.0    # longest wall silence (s) allowed while it is read: 2 periods + 1 s
+
+
+class LiveFeeder:
+    """Publish a window of history at once, then live samples at RATE_HZ (wall clock)."""
+
+    def __init__(self, graph: Graph):
+        self.feeder = Feeder(graph.node)
+        self.running = True
+        now = time.time()
+        for k in range(int(WINDOW_S) + 5):
+            self.feeder.sample(now - WINDOW_S - 5 + k)
+        graph.node.create_timer(1.0 / RATE_HZ, self._tick)
+
+    def _tick(self) -> None:
+        if self.running:
+            self.feeder.sample(time.time())
+
+
+@pytest.fixture(scope='module')
+def fed(tmp_path_factory):
+    """Start a predictor fed live by this process; yield (graph, predictor process)."""
+    launcher = Launcher(tmp_path_factory.mktemp('fed'))
+    graph = Graph('hardening_fed')
+    predictor = launcher.start_node('hybrid_predictor', 'predictor', '--ros-args',
+                                    '-p', 'diagnostics_period:=0.25')
+    try:
+        assert wait_for(lambda: graph.node.count_subscribers('/vessel/odom') > 0 and
+                        graph.node.count_publishers('/vessel/forecast') > 0, 90), \
+            predictor.output()[-3000:]
+        time.sleep(1.0)   # let discovery settle before the history burst
+        graph.feeder = LiveFeeder(graph)
+        assert wait_for(lambda: graph.forecasts, 30), predictor.output()[-3000:]
+        yield graph, predictor
+    finally:
+        graph.close()
+        launcher.stop_all()
+
+
+def plan(n=900, **fields):
+    from hybrid_predictor_interfaces.msg import ControlPlan
+
+    return ControlPlan(shaft_speed=[85.0] * n, rudder_port=[0.01] * n, rudder_stbd=[0.01] * n,
+                       **fields)
+
+
+def test_malformed_plans_are_refused_on_the_service_and_the_topic(fed):
+    from hybrid_predictor_interfaces.msg import ControlPlan
+    from hybrid_predictor_interfaces.srv import Predict
+
+    graph, predictor = fed
+    client = graph.node.create_client(Predict, '/vessel/predictor/predict')
+    assert client.wait_for_service(timeout_sec=30)
+    for plans, why in (([plan(wind_speed=[5.0] * 900)], 'wind_direction 0; give both'),
+                       ([plan(wind_direction=[0.3] * 900)], 'wind_speed has 0 entries'),
+                       ([plan(), plan(wind_speed=[5.0] * 900, wind_direction=[0.1] * 899)],
+                        'plan 1: wind_speed has 900 entries and wind_direction 899'),
+                       ([plan(wind_speed=[-1.0] * 900, wind_direction=[0.0] * 900)],
+                        'wind_speed must be >= 0')):
+        answer = graph.call(client, Predict.Request(plans=plans))
+        assert not answer.success and why in answer.message, answer.message
+        assert len(answer.forecasts) == 0
+    good = graph.call(client, Predict.Request(plans=[plan(wind_speed=[5.0] * 900,
+                                                          wind_direction=[0.3] * 900)]))
+    assert good.success, good.message
+
+    pub = graph.node.create_publisher(ControlPlan, '/vessel/control_plan', 10)
+    assert wait_for(lambda: pub.get_subscription_count() > 0, 10)
+    bad = plan(wind_speed=[5.0] * 900)
+    bad.header.stamp = graph.node.get_clock().now().to_msg()
+    pub.publish(bad)
+    assert wait_for(lambda: graph.count('plans_rejected') >= 1, 10), graph.values()
+    count = len(graph.forecasts)
+    assert wait_for(lambda: len(graph.forecasts) >= count + 2, 10)
+    assert predictor.alive()
+
+
+def test_absurd_values_and_bad_quaternions_are_rejected_and_counted(fed):
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
+
+    from vessel_ros_bridge import messages as m
+
+    graph, predictor = fed
+    before = graph.values()
+    odom = graph.feeder.feeder.odom
+    stamp = m.stamp_from_seconds(time.time())
+
+    def odometry(u=6.0, q=(0.0, 0.0, 0.0, 1.0), frame='odom'):
+        msg = Odometry()
+        msg.header.stamp, msg.header.frame_id, msg.child_frame_id = stamp, frame, 'base_link'
+        msg.twist.twist.linear.x = u
+        o = msg.pose.pose.orientation
+        o.x, o.y, o.z, o.w = q
+        return msg
+
+    for msg in (odometry(u=1e6), odometry(q=(0.0, 0.0, 0.0, math.inf)),
+                odometry(q=(0.0, 0.0, 0.0, 7.0)), odometry(q=(0.0, 0.0, 0.0, 0.0)),
+                odometry(frame='')):
+        odom.publish(msg)
+    graph.feeder.feeder.act.publish(JointState(
+        header=odometry().header, name=['propeller', 'rudder_port', 'rudder_stbd'],
+        position=[0.0, 10.0, 0.0], velocity=[85.0, 0.0, 0.0]))
+
+    def grew(key, by):
+        return graph.count(key) >= int(before.get(key, 0)) + by
+
+    assert wait_for(lambda: grew('rejected_implausible', 2) and grew('rejected_non_finite', 1)
+                    and grew('rejected_bad_quaternion', 2) and grew('rejected_no_frame_id', 1),
+                    10), graph.values()
+    count = len(graph.forecasts)
+    assert wait_for(lambda: len(graph.forecasts) >= count + 2, 10)
+    for _, forecast in graph.forecasts:
+        hybrid = np.reshape(forecast.hybrid, (-1, 5))
+        assert np.isfinite(hybrid).all() and np.abs(hybrid[:, 0]).max() <= 12.0
+    assert predictor.alive()
+
+
+def test_a_stamp_far_in_the_future_does_not_stop_forecasting(fed):
+    from vessel_ros_bridge import messages as m
+
+    graph, _ = fed
+    future = time.time() + 1e6
+    graph.feeder.feeder.odom.publish(m.odometry_from_state(
+        {'u': 6.0, 'v': 0.0, 'p': 0.0, 'r': 0.0, 'phi': 0.0, 'psi': 0.0, 'x': 0.0, 'y': 0.0},
+        m.stamp_from_seconds(future), 'odom', 'base_link'))
+    published = time.time()
+    assert wait_for(lambda: graph.count('rejected_future') >= 1, 10), graph.values()
+    # Genuine data after it is forecast at once (well within one window).
+    assert wait_for(lambda: graph.stamp() > published + 1.0, 10), graph.values()
+    assert graph.stamp() < published + 60
+
+
+def set_parameter(graph, name, value):
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    client = graph.node.create_client(SetParameters, '/vessel/predictor/set_parameters')
+    assert client.wait_for_service(timeout_sec=10)
+    request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+    (result,) = graph.call(client, request).results
+    return result
+
+
+def forecasts_in(graph, seconds: float) -> int:
+    start = len(graph.forecasts)
+    time.sleep(seconds)
+    return len(graph.forecasts) - start
+
+
+def test_a_runtime_forecast_period_change_shows_in_the_publish_rate(fed):
+    graph, _ = fed
+    assert not set_parameter(graph, 'model_path', '/tmp/x.safetensors').successful
+    refused = set_parameter(graph, 'restart_span', 1.0)
+    assert not refused.successful and 'at least max_age' in refused.reason
+    at_1s = forecasts_in(graph, 4.0)
+    assert set_parameter(graph, 'forecast_period', 0.2).successful
+    time.sleep(0.5)
+    at_02s = forecasts_in(graph, 4.0)
+    assert set_parameter(graph, 'forecast_period', 5.0).successful
+    time.sleep(1.0)
+    at_5s = forecasts_in(graph, 4.0)
+    assert 2 <= at_1s <= 6 and at_02s >= 12 and at_5s <= 1, (at_1s, at_02s, at_5s)
+
+
+def test_a_burst_of_20000_messages_is_read_through_while_forecasts_go_on(fed):
+    from vessel_ros_bridge import messages as m
+
+    graph, _ = fed
+    assert set_parameter(graph, 'forecast_period', 1.0).successful
+    count = len(graph.forecasts)
+    assert wait_for(lambda: len(graph.forecasts) >= count + 2, 5)
+    before = graph.count('rejected_out_of_order')
+    # A replay of one old message, as fast as this process publishes, while the live
+    # feeder goes on in its own thread.
+    old = m.odometry_from_state(
+        {'u': 6.0, 'v': 0.0, 'p': 0.0, 'r': 0.0, 'phi': 0.0, 'psi': 0.0, 'x': 0.0, 'y': 0.0},
+        m.stamp_from_seconds(time.time() - 30.0), 'odom', 'base_link')
+    started = time.monotonic()
+    for _ in range(BURST):
+        graph.feeder.feeder.odom.publish(old)
+    time.sleep(3.0)
+    ended = time.monotonic()
+    arrivals = [t for t, _ in graph.forecasts if started <= t <= ended]
+    gaps = np.diff([started, *arrivals, ended])
+    assert gaps.max() <= BURST_SILENCE, (gaps.max(), ended - started)
+    # The burst was read (keep-last queues, the publisher's and the node's, drop part
+    # of it) and the newest real samples are still the ones forecast.
+    assert graph.count('rejected_out_of_order') > before, graph.values()
+    assert graph.stamp() >= time.time() - 3.0, graph.stamp() - time.time()
+
+
+def test_silence_turns_diagnostics_error_within_two_forecast_periods(fed):
+    graph, _ = fed
+    assert set_parameter(graph, 'forecast_period', SILENCE_PERIOD).successful
+    count = len(graph.forecasts)
+    assert wait_for(lambda: len(graph.forecasts) >= count + 2, 4 * SILENCE_PERIOD)
+    assert graph.status().level == b'\x00', graph.status().message
+    graph.feeder.running = False
+    time.sleep(0.3)   # forecasts in flight arrive
+    last = graph.forecasts[-1][0]
+
+    def error():
+        status = graph.status(since=last)
+        return status is not None and status.level == b'\x02'
+    assert wait_for(error, 4 * SILENCE_PERIOD)
+    first_error = next(t for t, msg in graph.diagnostics if t >= last and
+                       msg.status[0].level == b'\x02')
+    message = graph.status().message
+    assert first_error - last <= 2 * SILENCE_PERIOD, (first_error - last, message)
+    assert 'no forecast for' in message
+    # Later the inputs are stale by the node's clock, and their age keeps growing.
+    assert wait_for(lambda: 'inputs stale' in graph.status().message, 10)
+    age = float(graph.values()['input_age_s'])
+    time.sleep(1.0)
+    assert float(graph.values()['input_age_s']) >= age + 0.5
