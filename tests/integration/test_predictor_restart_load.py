@@ -18,6 +18,7 @@ START = 5000.0         # the simulator's start time (s)
 WINDOW_S = 60.0        # the patrol boat's window
 
 
+@pytest.mark.slow  # about 30 s: two real-time processes and a 60 s window
 def test_a_simulator_restarted_after_kill_9_is_forecast_again_within_one_window(launcher):
     graph = Graph('hardening_restart')
     sim_args = ('--ros-args', '-p', 'seed:=3', '-p', f'start_time:={START}',
@@ -45,6 +46,7 @@ def test_a_simulator_restarted_after_kill_9_is_forecast_again_within_one_window(
         graph.close()
 
 
+@pytest.mark.slow  # about 35 s: start-up, a 15 s soak of 32 requests in flight
 def test_a_service_soak_answers_every_request_while_forecasts_flow(tmp_path):
     from offline.benchmarks.soak import soak
 

@@ -93,9 +93,9 @@ def test_predictor_launch_with_arguments_follows_a_simulator_moved_by_ros2_run(
              / 'models' / 'default' / 'model.safetensors')
     ros2_launch(launcher, 'hybrid_predictor', 'predictor.launch.py', 'namespace:=p1',
                 'vessel:=patrol_boat', f'model_path:={model}', 'relative_threshold:=0.1',
-                'frame_prefix:=p1/', name='predictor_launch')
-    # The wall-clock stamps of a faster-than-real-time simulator run ahead of the
-    # predictor's clock, which its age check accepts.
+                'frame_prefix:=p1/', 'use_sim_time:=true', name='predictor_launch')
+    # A faster-than-real-time simulator's stamps run ahead of the wall clock, which the
+    # predictor refuses as future samples: it follows the simulator's /clock instead.
     # `ros2 run` expects Ctrl-C on its whole process group, as the launcher sends it.
     launcher.start([str(WITH_ROSTOOLS), 'ros2', 'run', 'ship_sim_node', 'simulator',
                     '--ros-args', '-r', '__ns:=/p1', '-p', f'real_time_factor:={FAST}'],
