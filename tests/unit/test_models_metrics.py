@@ -5,7 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_models.metrics import forecast_metrics, positions, trajectory_errors
+from hybrid_models.metrics import (
+    dead_reckoning,
+    forecast_metrics,
+    positions,
+    trajectory_errors,
+)
 from vessel_description import load_vessel
 
 SHIP = load_vessel('patrol_boat')
@@ -34,6 +39,26 @@ def test_turning_follows_the_heading_integral():
     x = np.cumsum(np.cos([0.0, 0.1, 0.2]))
     y = np.cumsum(np.sin([0.0, 0.1, 0.2]))
     np.testing.assert_allclose(pos, np.stack([x, y], 1))
+
+
+def test_a_steady_turn_is_the_closed_form_polygon_on_the_turning_circle():
+    # Constant u and r: step j moves u dt along heading j r dt, so the track is
+    # sum_j u dt e^{i j theta} = u dt (e^{i(k+1)theta} - 1) / (e^{i theta} - 1), a regular
+    # polygon inscribed in a circle of radius u dt / (2 sin(theta / 2)) -> u / r.
+    u, r, n = 3.0, 0.02, 400
+    theta = r * SHIP.dt
+    xy, heading = dead_reckoning(states(n, u=u, r=r), SHIP)
+    k = np.arange(n)
+    closed = u * SHIP.dt * (np.exp(1j * (k + 1) * theta) - 1) / (np.exp(1j * theta) - 1)
+    np.testing.assert_allclose(xy[:, 0] + 1j * xy[:, 1], closed, atol=1e-9)
+    np.testing.assert_allclose(heading, (k + 1) * theta, atol=1e-12)
+    centre = -u * SHIP.dt / (np.exp(1j * theta) - 1)
+    radius = np.abs(xy[:, 0] + 1j * xy[:, 1] - centre)
+    np.testing.assert_allclose(radius, u / r, rtol=1e-4)
+    # The heading at the end of a step is the one the next step moves along.
+    steps = np.diff(xy, axis=0)
+    np.testing.assert_allclose(np.arctan2(steps[:, 1], steps[:, 0]),
+                               np.angle(np.exp(1j * heading[:-1])), atol=1e-9)
 
 
 def test_trajectory_error_and_rmse_of_a_constant_surge_bias():

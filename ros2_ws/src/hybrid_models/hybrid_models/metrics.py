@@ -3,12 +3,15 @@ Forecast metrics: per-state RMSE and the trajectory error of Baier et al.
 
 Trajectory (any vessel; roll enters only where it is modelled): heading and position
 are integrated from the origin with heading 0 for predicted and true states alike,
-forward Euler at the sample period dt:
+forward Euler at the sample period dt; state k is held over step k, which ends at
+sample k:
 
-    psi_k = dt * sum_{j<k} r_j
-    x_k = dt * sum_{j<=k} (u_j cos psi_j - v_j cos phi_j sin psi_j)
-    y_k = dt * sum_{j<=k} (u_j sin psi_j + v_j cos phi_j cos psi_j)
+    psi_k = dt * sum_{j<=k} r_j                       (heading at the end of step k)
+    x_k = dt * sum_{j<=k} (u_j cos psi_{j-1} - v_j cos phi_j sin psi_{j-1})
+    y_k = dt * sum_{j<=k} (u_j sin psi_{j-1} + v_j cos phi_j cos psi_{j-1})
 
+with psi_{-1} = 0. This is the one dead reckoning of the project: the predictor's
+published track (``hybrid_predictor.plans.track``) is this one, rotated and shifted.
 The error at step k is the Euclidean distance between predicted and true (x_k, y_k).
 The reported mean runs over all steps and forecasts; its 95 % confidence interval is
 1.96 * std / sqrt(n) with std and n over the per-forecast mean errors (forecasts, not
@@ -25,19 +28,27 @@ from hybrid_models.vehicle import VehicleSpec
 Z95 = 1.959963984540054
 
 
-def positions(z: np.ndarray, spec: VehicleSpec) -> np.ndarray:
+def dead_reckoning(z: np.ndarray, spec: VehicleSpec) -> tuple[np.ndarray, np.ndarray]:
     """
-    Integrate planar tracks (..., H, 2) in m from states (..., H, n_state) (module doc).
+    Integrate states (..., H, n_state) into a track from the origin, heading 0 (module doc).
 
-    A vessel without roll moves as if phi = 0.
+    Return positions (..., H, 2) in m (north, east) and headings (..., H) in rad, both at
+    the end of each step. A vessel without roll moves as if phi = 0.
     """
     dt = spec.dt
     u, v, r = (z[..., spec.state_index(n)] for n in ('u', 'v', 'r'))
-    psi = dt * (np.cumsum(r, axis=-1) - r)
+    heading = dt * np.cumsum(r, axis=-1)
+    held = heading - dt * r              # the heading a step starts from
     sway = v * np.cos(z[..., spec.state_index('phi')]) if spec.has_roll else v
-    x_dot = u * np.cos(psi) - sway * np.sin(psi)
-    y_dot = u * np.sin(psi) + sway * np.cos(psi)
-    return dt * np.stack([np.cumsum(x_dot, axis=-1), np.cumsum(y_dot, axis=-1)], axis=-1)
+    x_dot = u * np.cos(held) - sway * np.sin(held)
+    y_dot = u * np.sin(held) + sway * np.cos(held)
+    xy = dt * np.stack([np.cumsum(x_dot, axis=-1), np.cumsum(y_dot, axis=-1)], axis=-1)
+    return xy, heading
+
+
+def positions(z: np.ndarray, spec: VehicleSpec) -> np.ndarray:
+    """Return the positions (..., H, 2) in m of ``dead_reckoning``."""
+    return dead_reckoning(z, spec)[0]
 
 
 def trajectory_errors(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec) -> np.ndarray:

@@ -15,7 +15,7 @@ import math
 
 import numpy as np
 
-from hybrid_models.metrics import positions
+from hybrid_models.metrics import dead_reckoning
 
 ACTUATOR_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd')
 WIND_FIELDS = ('wind_speed', 'wind_direction')
@@ -108,18 +108,17 @@ def track(states: np.ndarray, pose: tuple[float, float, float], spec,
     """
     Return the forecast track: north, east (m, NED) and heading (rad) per step.
 
-    ``hybrid_models.metrics.positions`` integrates the track from the origin with
+    ``hybrid_models.metrics.dead_reckoning`` integrates the track from the origin with
     heading 0, as the trajectory error does; starting from ``pose`` = (x, y, psi)
     instead only rotates that track by psi and shifts it, so the published track is
     exactly what the trajectory error measures. ``spec`` is the model's vessel.
     """
     x0, y0, psi0 = pose
-    local = positions(states, spec)                 # (..., H, 2) north, east
+    local, heading = dead_reckoning(states, spec)   # (..., H, 2) north, east; (..., H)
     cos_p, sin_p = math.cos(psi0), math.sin(psi0)
     north = x0 + cos_p * local[..., 0] - sin_p * local[..., 1]
     east = y0 + sin_p * local[..., 0] + cos_p * local[..., 1]
-    heading = psi0 + spec.dt * np.cumsum(states[..., spec.state_index('r')], axis=-1)
-    return north, east, heading
+    return north, east, psi0 + heading
 
 
 def bound_hit_fraction(hybrid: np.ndarray, physics: np.ndarray, bound: np.ndarray,
