@@ -9,8 +9,8 @@ before it sends again, as a well-behaved client does. Figures: requests sent, an
 (success, busy or another failure) and never answered; p50/p99 latency; forecasts
 published during the soak and the longest silence between them, in message time
 (forecast periods) and wall time; the predictor's resident memory at the start, after
-the warm-up (the first tenth of the soak, at most 60 s: buffers and caches filling)
-and at the end.
+the warm-up (the first tenth of the soak, at most 60 s: buffers and caches filling),
+at the end, and 20 samples in between (growth that levels off, or keeps on).
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ WINDOW_S = 60.0   # the patrol boat's window: the simulator must run this long f
 # Fast DDS hands every client of a service the responses to all of them, each
 # client filtering its own: the response queue must hold all requests in flight.
 RESPONSE_DEPTH = 1000
+RSS_SAMPLES = 20  # evenly spaced over the soak: growth that levels off or keeps on
 
 
 def add_arguments(parser) -> None:
@@ -210,10 +211,13 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
         started = time.monotonic()
         load.begin(duration)
         warm_at, rss_warm = started + min(0.1 * duration, 60.0), None
+        trace_every, rss_trace = duration / RSS_SAMPLES, []
         while time.monotonic() < started + duration:
             time.sleep(0.2)
             if rss_warm is None and time.monotonic() >= warm_at:
                 rss_warm = rss_mb(predictor.pid)
+            if time.monotonic() >= started + trace_every * len(rss_trace):
+                rss_trace.append(round(rss_mb(predictor.pid), 1))
         ended = time.monotonic()
         rss_end = rss_mb(predictor.pid)
         # Every request sent must come back; give the last ones time to.
@@ -261,6 +265,7 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
         'rss_start_mb': round(rss_start, 1),
         'rss_after_warm_up_mb': round(rss_warm or rss_end, 1),
         'rss_end_mb': round(rss_end, 1),
+        'rss_trace_mb': rss_trace,
         'rss_growth_percent': round(100.0 * (rss_end - rss_start) / rss_start, 2),
         'rss_growth_after_warm_up_percent': round(
             100.0 * (rss_end - (rss_warm or rss_end)) / (rss_warm or rss_end), 2),

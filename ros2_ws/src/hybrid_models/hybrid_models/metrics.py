@@ -47,7 +47,7 @@ def dead_reckoning(z: np.ndarray, spec: VehicleSpec) -> tuple[np.ndarray, np.nda
 
 
 def positions(z: np.ndarray, spec: VehicleSpec) -> np.ndarray:
-    """Return the positions (..., H, 2) in m of ``dead_reckoning``."""
+    """Return only the track (..., H, 2) in m of ``dead_reckoning``."""
     return dead_reckoning(z, spec)[0]
 
 
