@@ -38,7 +38,10 @@ def ros2():
         return subprocess.run([str(WITH_ROSTOOLS), 'ros2', *args], capture_output=True,
                               text=True, timeout=CLI_TIMEOUT_S, cwd=REPO)
 
-    return run
+    yield run
+    # Verbs without --no-daemon (echo, service call) spawn the CLI's daemon, which
+    # would outlive the test session.
+    run('daemon', 'stop')
 
 
 def said(result: subprocess.CompletedProcess) -> str:

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from functools import partial
 import importlib
 import math
+import os
 from pathlib import Path
 import sys
 import threading
@@ -48,6 +49,7 @@ from hybrid_models.checkpoint import CheckpointError
 from hybrid_models.engine import ForecastEngine
 from hybrid_predictor.health import Health
 from hybrid_predictor.input_window import InputWindow, channel_reader
+from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
     ActuatorLimits,
     PlanError,
@@ -99,8 +101,10 @@ class Pending:
 class PredictorNode(Node):
     """Serve forecasts of the vessel's motion from the latest measurement window."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, middleware_note: str = '', **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        if middleware_note:
+            self.get_logger().info(middleware_note)
         p = declare_from_specs(self, load_specs(package_config('hybrid_predictor',
                                                                'predictor.yaml')))
         self.p = p
@@ -542,9 +546,11 @@ def plan_limits(vessel) -> ActuatorLimits | None:
 
 def main(args=None) -> int:
     """Run the predictor until interrupted; exit 2 with one line on a bad model or value."""
-    return run_node(PredictorNode, NODE_NAME, (CheckpointError, FileNotFoundError,
-                                               ValueError, VesselError, TopicMapError), args,
-                    executor_for)
+    note = use_service_profile(os.environ, package_config('hybrid_predictor', PROFILE_FILE)
+                               .parent)
+    return run_node(partial(PredictorNode, middleware_note=note), NODE_NAME,
+                    (CheckpointError, FileNotFoundError, ValueError, VesselError,
+                     TopicMapError), args, executor_for)
 
 
 if __name__ == '__main__':
