@@ -17,6 +17,7 @@ from hybrid_models.data import RunArrays, Windows, forecast_windows, tiling_wind
 from hybrid_models.metrics import normalized_rmse_sum
 from hybrid_models.models import predict
 from hybrid_models.nets import as_tensor
+from hybrid_models.training.distributed import Shard
 from hybrid_models.training.loop import Task
 
 
@@ -41,9 +42,11 @@ class RecurrentTask(Task):
     """
 
     def __init__(self, train: list[RunArrays], val: list[RunArrays], cfg: dict,
-                 state_std: np.ndarray, z_phy_train=None, z_phy_val=None):
+                 state_std: np.ndarray, z_phy_train=None, z_phy_val=None,
+                 device: torch.device | None = None):
         self.train, self.val, self.cfg = train, val, cfg
-        self.state_std = torch.as_tensor(state_std, dtype=torch.float32)
+        self.device = device or torch.device('cpu')
+        self.state_std = as_tensor(state_std, self.device)
         self.state_std_np = np.asarray(state_std, dtype=np.float64)
         self.z_phy_train, self.z_phy_val = z_phy_train, z_phy_val
         v = cfg['validation']
@@ -53,8 +56,8 @@ class RecurrentTask(Task):
     def _length(self, phase: dict) -> int:
         return int(phase.get('sequence_length') or self.cfg['sequence_length'])
 
-    def batches(self, phase: dict, epoch: int, rng: np.random.Generator):
-        """Shuffled tiling sequences with a fresh offset each epoch."""
+    def batches(self, phase: dict, epoch: int, rng: np.random.Generator, shard: Shard):
+        """Shuffled tiling sequences with a fresh offset each epoch; this rank's part."""
         length = self._length(phase)
         w = tiling_windows(self.train, self.cfg['window'], length,
                            int(rng.integers(0, length)))
@@ -63,16 +66,19 @@ class RecurrentTask(Task):
         order = rng.permutation(len(w))
         bs = self.cfg['batch_size']
         for i in range(0, len(order), bs):
-            idx = order[i:i + bs]
-            yield (w.subset(idx), None if z_phy is None else z_phy[idx])
+            dealt = shard.deal(order[i:i + bs])
+            if dealt is None:
+                continue
+            idx, weight = dealt
+            yield (w.subset(idx), None if z_phy is None else z_phy[idx]), weight
 
     def loss(self, model: nn.Module, phase: dict, batch) -> torch.Tensor:
         """Return the normalized MSE of the predicted states."""
         w, z_phy = batch
-        zw, cw, cf, target = (as_tensor(a) for a in (w.z_window, w.c_window, w.c_future,
-                                                     w.z_target))
+        zw, cw, cf, target = (as_tensor(a, self.device)
+                              for a in (w.z_window, w.c_window, w.c_future, w.z_target))
         if phase['kind'] == 'teacher':
-            z_phy = as_tensor(z_phy)
+            z_phy = as_tensor(z_phy, self.device)
             pred = z_phy + model.teacher_forced(zw, cw, cf, z_phy)
         else:
             pred = model.forecast(zw, cw, cf)
@@ -99,11 +105,11 @@ class RecurrentTask(Task):
             losses = []
             for i in range(0, len(w), 1024):
                 sub = w.subset(slice(i, i + 1024))
-                zp = as_tensor(z_phy[i:i + 1024])
-                pred = zp + model.teacher_forced(as_tensor(sub.z_window),
-                                                 as_tensor(sub.c_window),
-                                                 as_tensor(sub.c_future), zp)
-                err = ((pred - as_tensor(sub.z_target)) / self.state_std) ** 2
+                zp = as_tensor(z_phy[i:i + 1024], self.device)
+                zw, cw, cf, target = (as_tensor(a, self.device) for a in (
+                    sub.z_window, sub.c_window, sub.c_future, sub.z_target))
+                pred = zp + model.teacher_forced(zw, cw, cf, zp)
+                err = ((pred - target) / self.state_std) ** 2
                 losses.append(err.mean(dim=(1, 2)))
             return float(torch.cat(losses).mean())
         finally:

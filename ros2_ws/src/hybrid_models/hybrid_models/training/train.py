@@ -4,6 +4,8 @@ Train one model from a resolved config: data, physics fit, statistics, fit loop.
 ``train(cfg, out_dir)`` writes into ``out_dir``: ``model.safetensors`` (the best
 model by validation multistep error, with every figure of its config), ``best`` and
 ``last`` checkpoints, ``log.jsonl`` (one line per epoch) and ``config.yaml``.
+Under torchrun every rank calls ``train`` and trains its share
+(``hybrid_models.training.distributed``); only rank 0 writes those files.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from hybrid_models.nets import HybridModel
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import CompositeModel, RegressionModel
 from hybrid_models.training.config import fill_from_vessel
+from hybrid_models.training.distributed import Group, join, leave
 from hybrid_models.training.loop import BEST, LAST, LoopState, fit
 from hybrid_models.training.tasks import RecurrentTask
 from hybrid_models.vehicle import VehicleSpec, load_vessel
@@ -62,20 +65,33 @@ def check_windows(cfg: dict, spec: VehicleSpec) -> None:
                 f'horizon (vessel file or training config) or use longer runs')
 
 
-def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
-    """Train the configured model; returns the final checkpoint's config."""
+def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'auto') -> dict:
+    """
+    Train the configured model; returns the final checkpoint's config.
+
+    ``device``: auto (a GPU when one is present), cpu or cuda. Launched by torchrun,
+    this process joins the job's process group for the duration of the call.
+    """
     if cfg['dataset'] is None:
         raise ValueError('the config names no dataset (key "dataset" or --dataset)')
     # Everything that can refuse the dataset runs before anything is written.
     spec = dataset_vessel(cfg)
     cfg = fill_from_vessel(cfg, spec)
     check_windows(cfg, spec)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    group = join(device)
+    try:
+        return _train(cfg, spec, Path(out_dir), resume, group)
+    finally:
+        leave(group)
+
+
+def _train(cfg: dict, spec: VehicleSpec, out_dir: Path, resume: bool, group: Group) -> dict:
     tcfg = cfg['training']
     torch.set_num_threads(int(tcfg['threads']))
     torch.manual_seed(tcfg['seed'])
-    (out_dir / 'config.yaml').write_text(yaml.safe_dump(cfg, sort_keys=False))
+    if group.main:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / 'config.yaml').write_text(yaml.safe_dump(cfg, sort_keys=False))
     t_start = time.monotonic()
     train_runs = load_runs(cfg['dataset'], 'train', spec)
     val_runs = load_runs(cfg['dataset'], 'val', spec)
@@ -88,9 +104,11 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
     base['normalization'] = {'state': state_norm.to_dict(), 'control': control_norm.to_dict()}
     kind = cfg['model']['kind']
     if kind == 'qlag':
+        # A closed-form fit: nothing to share out; every rank fits, rank 0 writes.
         model, extra = _fit_qlag(cfg, spec, train_runs, val_runs, state_norm)
         summary = {**base, **extra, 'model': model.describe()}
-        save_checkpoint(out_dir / MODEL_FILE, model, summary)
+        if group.main:
+            save_checkpoint(out_dir / MODEL_FILE, model, summary)
         return summary
     model = build_model(cfg['model'], spec)
     model.set_normalization(state_norm, control_norm)
@@ -98,14 +116,19 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
     if isinstance(model, HybridModel):
         z_phy_train, z_phy_val, phys_info = _prepare_physics(model, cfg, train_runs, val_runs)
         base.update(phys_info)
-    task = RecurrentTask(train_runs, val_runs, tcfg, state_norm.std, z_phy_train, z_phy_val)
+    model.to(group.device)
+    task = RecurrentTask(train_runs, val_runs, tcfg, state_norm.std, z_phy_train, z_phy_val,
+                         device=group.device)
     base['parameters'] = sum(p.numel() for p in model.parameters())
 
     def checkpoint_config() -> dict:
         return {**base, 'model': model.describe()}
 
     resume = resume and (out_dir / LAST).exists()
-    state: LoopState = fit(model, task, tcfg, out_dir, checkpoint_config, resume=resume)
+    state: LoopState = fit(model, task, tcfg, out_dir, checkpoint_config, resume=resume,
+                           group=group)
+    if not group.main:
+        return {**checkpoint_config(), 'epochs': state.epoch, 'rank': group.rank}
     best = load_checkpoint(out_dir / BEST if (out_dir / BEST).exists() else out_dir / LAST)
     model.load_state_dict(best.model_state)
     summary = {**checkpoint_config(), 'val': best.config.get('val'),
