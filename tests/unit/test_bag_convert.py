@@ -266,6 +266,8 @@ def test_cli_writes_dataset_manifest_and_split(tmp_path, capsys):
     assert [s['sha256'] for s in sources] == [sha256(next(b.glob('*.mcap'))) for b in bags]
     conversion = manifest['conversion']
     assert conversion['rate_hz'] == 1.0 and conversion['time_source'] == 'header'
+    # One manifest entry per bag, whichever worker process converted it.
+    assert [b['name'] for b in conversion['bags']] == ['bag0', 'bag1']
     assert conversion['dropped_samples'] == {'nan': 0, 'duplicate': 0, 'out_of_order': 0}
     assert manifest['provenance']['config']['topic_map']['wind']['frame'] == 'flu'
     assert len(dataset.load('bag1-000')) == 101

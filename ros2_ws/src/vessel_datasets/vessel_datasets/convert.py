@@ -43,6 +43,7 @@ from .topic_map import TopicMap
 TOOL = 'offline/bag_to_dataset.py'
 PROGRESS_EVERY = 20_000  # messages between progress callbacks
 PROGRESS_POLL_S = 0.2  # how often the parent forwards the workers' progress
+BAGS_PER_WORKER = 1  # bags a worker process converts before it is replaced
 
 
 class ConversionError(ValueError):
@@ -282,8 +283,11 @@ def convert_bags(paths: Iterable[str | os.PathLike], topic_map: TopicMap, opts: 
     ctx = mp.get_context('spawn')  # workers must not inherit other threads' locks
     queue = ctx.Queue() if progress else None
     results: dict[int, BagResult] = {}
+    # A fresh worker per bag: what one bag's conversion allocated goes back to the OS
+    # with its process, so a worker's memory is bounded by its largest bag.
     with ProcessPoolExecutor(max_workers=min(jobs, len(bags)), mp_context=ctx,
-                             initializer=_init_worker, initargs=(queue,)) as pool:
+                             initializer=_init_worker, initargs=(queue,),
+                             max_tasks_per_child=BAGS_PER_WORKER) as pool:
         futures = {pool.submit(_worker, bag, topic_map, opts, definitions): i
                    for i, bag in enumerate(bags)}
         pending = set(futures)
