@@ -6,6 +6,11 @@ Train one forecasting model (QLag, LSTM or hybrid) from a YAML config.
         --dataset DIR --out runs/smoke
     python offline/train.py CONFIG --out runs/x --resume     # continue a killed run
     python offline/train.py CONFIG --set model.physical.kind=min+lin --set training.seed=1
+    torchrun --nproc_per_node=2 offline/train.py CONFIG --out runs/x   # data-parallel
+
+Runs as one process, or unchanged under torchrun (DistributedDataParallel, gloo on
+CPU, NCCL on GPUs); training.batch_size is the global batch whatever the number of
+processes (README, "Scaling out").
 
 Writes into --out: model.safetensors (best model by validation multistep error),
 best/last checkpoints, log.jsonl (one line per epoch), config.yaml. Progress bars and
@@ -22,6 +27,7 @@ for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_da
     sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
 
 from hybrid_models.training import ConfigError, load_config, train  # noqa: E402
+from hybrid_models.training.distributed import DEVICES  # noqa: E402
 
 
 def main(argv=None) -> int:
@@ -36,6 +42,8 @@ def main(argv=None) -> int:
     parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
                         help='override a config value, e.g. training.seed=1 (repeatable)')
     parser.add_argument('--quiet', action='store_true', help='no progress bars')
+    parser.add_argument('--device', choices=DEVICES, default='auto',
+                        help='auto (a GPU when one is present), cpu or cuda (default auto)')
     args = parser.parse_args(argv)
     overrides = list(args.set)
     if args.dataset:
@@ -45,10 +53,12 @@ def main(argv=None) -> int:
     try:
         cfg = load_config(args.config, overrides)
         out = args.out or ROOT / 'runs' / cfg['name']
-        summary = train(cfg, out, resume=args.resume)
+        summary = train(cfg, out, resume=args.resume, device=args.device)
     except (ConfigError, ValueError, FileNotFoundError) as exc:
         print(f'train.py: error: {exc}', file=sys.stderr)
         return 2
+    if summary.get('rank', 0) != 0:
+        return 0  # rank 0 reports for the whole job
     keep = ('name', 'val', 'best_epoch', 'epochs', 'train_seconds', 'stop_reason',
             'bad_steps', 'rollbacks', 'parameters')
     print(json.dumps({k: summary.get(k) for k in keep} | {'out': str(out)}, indent=2))

@@ -266,6 +266,8 @@ def test_cli_writes_dataset_manifest_and_split(tmp_path, capsys):
     assert [s['sha256'] for s in sources] == [sha256(next(b.glob('*.mcap'))) for b in bags]
     conversion = manifest['conversion']
     assert conversion['rate_hz'] == 1.0 and conversion['time_source'] == 'header'
+    # One manifest entry per bag, whichever worker process converted it.
+    assert [b['name'] for b in conversion['bags']] == ['bag0', 'bag1']
     assert conversion['dropped_samples'] == {'nan': 0, 'duplicate': 0, 'out_of_order': 0}
     assert manifest['provenance']['config']['topic_map']['wind']['frame'] == 'flu'
     assert len(dataset.load('bag1-000')) == 101
@@ -275,6 +277,30 @@ def test_cli_writes_dataset_manifest_and_split(tmp_path, capsys):
     assert run_cli(bags[0], '--out', out, '--quiet') == 2
     assert run_cli(bags[0], '--out', out, '--quiet', '--overwrite') == 0
     assert fmt.read_dataset(out).run_ids() == ['bag0-000']
+
+
+def test_two_workers_write_the_same_dataset_as_one(tmp_path):
+    # More bags than workers, so a worker converts several; a damaged bag and a bad one
+    # carry drops, gaps and an error through the pool as well.
+    bags = [synthetic.write_bag(tmp_path / f'bag{i}', synthetic.demo_trajectory(60 + i,
+                                                                              seed=i))
+            for i in range(3)]
+    bags.insert(1, write_damaged_bag(tmp_path / 'damaged'))
+    (tmp_path / 'junk.mcap').write_bytes(b'\x00' * 100)
+    bags.append(tmp_path / 'junk.mcap')
+    manifests = []
+    for jobs in (1, 2):
+        out = tmp_path / f'dataset{jobs}'
+        assert run_cli(*bags, '--out', out, '--jobs', jobs, '--quiet') == 0
+        manifest = fmt.read_dataset(out).manifest
+        del manifest['provenance']['argv']  # the only difference: --jobs and --out
+        manifests.append(manifest)
+    assert manifests[0] == manifests[1]
+    assert [b['name'] for b in manifests[0]['conversion']['bags']] == [
+        'bag0', 'damaged', 'bag1', 'bag2', 'junk']
+    for run in manifests[0]['runs']:
+        assert (tmp_path / 'dataset1' / run['file']).read_bytes() == (
+            tmp_path / 'dataset2' / run['file']).read_bytes()
 
 
 def test_cli_exit_codes_for_bad_input(tmp_path, capsys):

@@ -52,7 +52,8 @@ def save_checkpoint(path: str | Path, model: nn.Module, config: dict,
                     optimizer: torch.optim.Optimizer | None = None) -> Path:
     """Write atomically (temporary file, then rename), so a kill never leaves half a file."""
     path = Path(path)
-    tensors = {f'model/{k}': v.detach().contiguous().clone()
+    # Stored from the CPU, so a checkpoint written on a GPU loads anywhere.
+    tensors = {f'model/{k}': v.detach().cpu().contiguous().clone()
                for k, v in model.state_dict().items()}
     config = dict(config)
     if optimizer is not None:
@@ -61,7 +62,7 @@ def save_checkpoint(path: str | Path, model: nn.Module, config: dict,
         for idx, state in opt['state'].items():
             for key, value in state.items():
                 if isinstance(value, torch.Tensor):
-                    tensors[f'optim/{idx}/{key}'] = value.detach().contiguous().clone()
+                    tensors[f'optim/{idx}/{key}'] = value.detach().cpu().contiguous().clone()
                 else:
                     scalars[f'{idx}/{key}'] = value
         config['optimizer'] = {'param_groups': opt['param_groups'], 'scalars': scalars}

@@ -37,6 +37,16 @@ class RunArrays:
         """Return the number of samples."""
         return len(self.z)
 
+    @property
+    def n_state(self) -> int:
+        """Return the number of states."""
+        return self.z.shape[1]
+
+    def rows(self, first: np.ndarray, count: int) -> np.ndarray:
+        """Blocks (n, count, D) of rows ``first[i] + k``, columns [z | c | z_true]."""
+        idx = np.asarray(first)[:, None] + np.arange(count)
+        return np.concatenate([self.z[idx], self.c[idx], self.z_true[idx]], axis=-1)
+
 
 @dataclass
 class Windows:
@@ -109,39 +119,63 @@ def forecast_starts(length: int, window: int, horizon: int, stride: int,
     return np.arange(first, last + 1, stride, dtype=np.int64)
 
 
-def cut_windows(runs: list[RunArrays], starts: list[np.ndarray], window: int, horizon: int,
-                target: str = 'measured') -> Windows:
-    """Gather forecast problems at ``starts[i]`` of run ``i``; target 'measured' or 'true'."""
+def window_index(starts: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Return (run index, t0) of every start, run by run: the order of ``cut_windows``."""
+    ri = [np.full(len(t0), i, dtype=np.int64) for i, t0 in enumerate(starts)]
+    return (np.concatenate(ri) if ri else np.zeros(0, np.int64),
+            np.concatenate(starts) if starts else np.zeros(0, np.int64))
+
+
+def gather_windows(runs: list, run_index: np.ndarray, t0: np.ndarray, window: int,
+                   horizon: int, target: str = 'measured') -> Windows:
+    """
+    Cut the forecast problems (run_index[j], t0[j]), in that order (module docstring).
+
+    ``runs`` are ``RunArrays`` in memory or ``run_store.RunFile`` on disk: anything with
+    ``rows(first, count)`` giving [z | c | z_true] blocks and ``n_state``. Target
+    'measured' or 'true'.
+    """
     if target not in ('measured', 'true'):
         raise ValueError(f"target must be 'measured' or 'true', got {target!r}")
-    zw, cw, cf, zt, ri, t0s = [], [], [], [], [], []
-    back = np.arange(-window, 0)
-    ahead = np.arange(horizon)
-    for i, (run, t0) in enumerate(zip(runs, starts, strict=True)):
-        if len(t0) == 0:
-            continue
-        w_idx = t0[:, None] + back
-        f_idx = t0[:, None] + ahead
-        zw.append(run.z[w_idx])
-        cw.append(run.c[w_idx])
-        cf.append(run.c[f_idx - 1])
-        zt.append((run.z_true if target == 'true' else run.z)[f_idx])
-        ri.append(np.full(len(t0), i))
-        t0s.append(t0)
-    if not zw:
+    if len(t0) == 0:
         raise ValueError(f'no run is long enough for window {window} + horizon {horizon}')
-    return Windows(np.concatenate(zw), np.concatenate(cw), np.concatenate(cf),
-                   np.concatenate(zt), np.concatenate(ri), np.concatenate(t0s))
+    blocks = None
+    for i in np.unique(run_index):
+        at = np.flatnonzero(run_index == i)
+        part = runs[i].rows(t0[at] - window, window + horizon)
+        if blocks is None:
+            blocks = np.empty((len(t0),) + part.shape[1:], dtype=part.dtype)
+        blocks[at] = part
+    ns = runs[int(run_index[0])].n_state
+    nc = blocks.shape[2] - 2 * ns
+    state = slice(ns + nc, None) if target == 'true' else slice(0, ns)
+    # Step k predicts z[t0+k] from c[t0+k-1]: the controls start one row before t0.
+    fields = (blocks[:, :window, :ns], blocks[:, :window, ns:ns + nc],
+              blocks[:, window - 1:window - 1 + horizon, ns:ns + nc],
+              blocks[:, window:, state])
+    return Windows(*(np.ascontiguousarray(f) for f in fields), np.asarray(run_index),
+                   np.asarray(t0))
 
 
-def forecast_windows(runs: list[RunArrays], window: int, horizon: int, stride: int,
+def cut_windows(runs: list, starts: list[np.ndarray], window: int, horizon: int,
+                target: str = 'measured') -> Windows:
+    """Gather forecast problems at ``starts[i]`` of run ``i``; target 'measured' or 'true'."""
+    return gather_windows(runs, *window_index(starts), window, horizon, target)
+
+
+def forecast_windows(runs: list, window: int, horizon: int, stride: int,
                      target: str = 'measured') -> Windows:
     """Cut evaluation forecasts: one every ``stride`` samples across each run."""
     starts = [forecast_starts(r.length, window, horizon, stride) for r in runs]
     return cut_windows(runs, starts, window, horizon, target)
 
 
-def tiling_windows(runs: list[RunArrays], window: int, length: int, offset: int) -> Windows:
+def tiling_starts(runs: list, window: int, length: int, offset: int) -> list[np.ndarray]:
+    """Return the first predicted indices of ``tiling_windows``, run by run."""
+    return [forecast_starts(r.length, window, length, length, offset) for r in runs]
+
+
+def tiling_windows(runs: list, window: int, length: int, offset: int) -> Windows:
     """
     Training sequences whose predicted spans tile each run from ``window + offset``.
 
@@ -149,8 +183,8 @@ def tiling_windows(runs: list[RunArrays], window: int, length: int, offset: int)
     sample once except the first ``offset`` after the window and a tail shorter than
     ``length``; drawing ``offset`` afresh each epoch covers all of ``[window, T)``.
     """
-    starts = [forecast_starts(r.length, window, length, length, offset) for r in runs]
-    return cut_windows(runs, starts, window, length, 'measured')
+    return cut_windows(runs, tiling_starts(runs, window, length, offset), window, length,
+                       'measured')
 
 
 def one_step_pairs(runs: list[RunArrays]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -98,9 +98,20 @@ def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
     }
 
 
+def squared_error_sums(pred: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, int]:
+    """Per-state sums of squared errors (float64) and the number of terms in each."""
+    with np.errstate(invalid='ignore', over='ignore'):
+        err = (np.asarray(pred, np.float64) - true).reshape(-1, pred.shape[-1])
+        return (err ** 2).sum(axis=0), len(err)
+
+
+def normalized_rmse_sum_of(sse: np.ndarray, count: int, state_std: np.ndarray) -> float:
+    """Sum over states of RMSE / std from error sums (parts of a split add up)."""
+    with np.errstate(invalid='ignore', over='ignore'):
+        total = float((np.sqrt(np.asarray(sse) / count) / state_std).sum())
+    return total if np.isfinite(total) else float('inf')
+
+
 def normalized_rmse_sum(pred: np.ndarray, true: np.ndarray, state_std: np.ndarray) -> float:
     """Sum over states of RMSE / std (the model-selection score; inf if diverged)."""
-    with np.errstate(invalid='ignore', over='ignore'):
-        rmse = np.sqrt(((pred - true) ** 2).reshape(-1, pred.shape[-1]).mean(axis=0))
-    total = float((rmse / state_std).sum())
-    return total if np.isfinite(total) else float('inf')
+    return normalized_rmse_sum_of(*squared_error_sums(pred, true), state_std)

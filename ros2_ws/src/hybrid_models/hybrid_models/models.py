@@ -7,7 +7,7 @@ import torch
 from torch import nn
 
 from hybrid_models.data import Windows
-from hybrid_models.nets import HybridModel, LSTMBaseline, as_tensor
+from hybrid_models.nets import HybridModel, LSTMBaseline, as_tensor, module_device
 from hybrid_models.physical import build_physical
 from hybrid_models.qlag import QLag
 from hybrid_models.vehicle import VehicleSpec
@@ -39,11 +39,13 @@ def predict(model: nn.Module, windows: Windows, batch_size: int = 1024) -> np.nd
     was_training = model.training
     model.eval()
     out = []
+    device = module_device(model)
     try:
         for i in range(0, len(windows), batch_size):
             w = windows.subset(slice(i, i + batch_size))
-            out.append(model.forecast(as_tensor(w.z_window), as_tensor(w.c_window),
-                                      as_tensor(w.c_future)).numpy())
+            out.append(model.forecast(as_tensor(w.z_window, device),
+                                      as_tensor(w.c_window, device),
+                                      as_tensor(w.c_future, device)).cpu().numpy())
     finally:
         model.train(was_training)
     return np.concatenate(out)

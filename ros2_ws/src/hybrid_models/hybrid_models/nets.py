@@ -187,6 +187,14 @@ def count_parameters(model: nn.Module) -> int:
     return int(sum(p.numel() for p in model.parameters() if p.requires_grad))
 
 
-def as_tensor(x: np.ndarray | torch.Tensor) -> torch.Tensor:
-    """float32 tensor view of an array."""
-    return torch.as_tensor(x, dtype=torch.float32)
+def as_tensor(x: np.ndarray | torch.Tensor, device: torch.device | None = None
+              ) -> torch.Tensor:
+    """float32 tensor of an array on ``device`` (a view when on the CPU already)."""
+    return torch.as_tensor(x, dtype=torch.float32, device=device)
+
+
+def module_device(module: nn.Module) -> torch.device:
+    """Return the device of a module's first parameter or buffer (the CPU if none)."""
+    for tensor in (*module.parameters(), *module.buffers()):
+        return tensor.device
+    return torch.device('cpu')

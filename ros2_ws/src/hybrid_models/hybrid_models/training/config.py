@@ -52,6 +52,12 @@ DEFAULTS: dict = {
                                                            # horizon, stride horizon/3
         'max_bad_step_fraction': 0.5,  # more skipped (non-finite) steps: roll the epoch back
         'time_limit_minutes': None,    # stop (keeping the best model) past this budget
+        'cache_dir': None,      # float32 copies of the runs that windows are read from;
+                                # None: <tmp>/hybrid_models_cache/<hash of the out dir>,
+                                # removed when training ends
+        'statistics_rows': 1_000_000,  # one-step pairs (and physics outputs) kept for
+                                       # the physics fit and the 95 % range: all of
+                                       # them up to this many, else a uniform sample
         'progress': True,
     },
     # None: the vessel's horizon; stride horizon/7.5 (120 s of the paper's 900 s)

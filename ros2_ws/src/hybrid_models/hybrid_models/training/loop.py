@@ -7,6 +7,12 @@ loop's state) is written atomically, and ``best.safetensors`` whenever the valid
 multistep score improves, so a killed run resumes losing at most the epoch in flight.
 Each epoch reseeds torch and numpy from (seed, epoch), which makes a resumed run
 repeat exactly what the uninterrupted one would have done.
+
+The same loop trains on several processes (``hybrid_models.training.distributed``):
+every rank runs it, the model is wrapped in DistributedDataParallel, each rank trains
+on its share of every global batch, the losses and validation figures are summed over
+ranks (so every decision below is taken on the same numbers everywhere), and only
+rank 0 writes checkpoints and the log or prints.
 """
 
 from __future__ import annotations
@@ -26,6 +32,7 @@ from torch import nn
 from tqdm import tqdm
 
 from hybrid_models.checkpoint import load_checkpoint, restore_optimizer, save_checkpoint
+from hybrid_models.training.distributed import Group, Shard
 
 LAST, BEST, LOG = 'last.safetensors', 'best.safetensors', 'log.jsonl'
 # Improvements smaller than this fraction do not reset the patience counter.
@@ -54,8 +61,13 @@ class LoopState:
 class Task:
     """What the loop needs from a model family (see ``hybrid_models.training.train``)."""
 
-    def batches(self, phase: dict, epoch: int, rng: np.random.Generator):
-        """Yield training batches for one epoch of ``phase``."""
+    def batches(self, phase: dict, epoch: int, rng: np.random.Generator, shard: Shard):
+        """
+        Yield (batch, weight) for one epoch of ``phase``: this rank's part of each batch.
+
+        ``rng`` is the same on every rank; ``shard.deal`` gives the part and its loss
+        weight (1.0 on one process).
+        """
         raise NotImplementedError
 
     def loss(self, model: nn.Module, phase: dict, batch) -> torch.Tensor:
@@ -71,22 +83,43 @@ def _json_safe(x: float) -> float | None:
     return x if math.isfinite(x) else None
 
 
-def seed_epoch(seed: int, epoch: int) -> np.random.Generator:
-    """Seed torch for this epoch and return its numpy generator."""
-    torch.manual_seed(seed * 1_000_003 + epoch)
+def seed_epoch(seed: int, epoch: int, rank: int = 0) -> np.random.Generator:
+    """
+    Seed torch for this epoch and return its numpy generator.
+
+    The numpy generator (batch order) is the same on every rank; torch's (dropout)
+    differs by rank so that ranks do not share dropout masks.
+    """
+    torch.manual_seed(seed * 1_000_003 + epoch + rank * 7_919)
     return np.random.default_rng([seed, epoch])
 
 
+class _Objective(nn.Module):
+    """The task's training loss as ``forward``: what DDP needs to synchronize gradients."""
+
+    def __init__(self, model: nn.Module, task: Task):
+        super().__init__()
+        self.model, self.task = model, task
+
+    def forward(self, phase: dict, batch) -> torch.Tensor:
+        return self.task.loss(self.model, phase, batch)
+
+
 def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
-        checkpoint_config: Callable[[], dict], resume: bool = False) -> LoopState:
+        checkpoint_config: Callable[[], dict], resume: bool = False,
+        group: Group | None = None) -> LoopState:
     """
     Train ``model`` through ``cfg['phases']``; returns the final loop state.
 
     ``checkpoint_config()`` gives the JSON config stored in every checkpoint (model
     description, normalization, dataset hash, ...); the loop adds its own state.
+    ``group``: this process's place in a torchrun job (None: one process).
     """
+    group = group or Group()
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    if group.main:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    objective = group.wrap(_Objective(model, task))
     phases = cfg['phases']
     state = LoopState()
     optimizer = None
@@ -98,9 +131,10 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
                 == state.phase:
             optimizer = _optimizer(model, phases[state.phase], cfg, state)
             restore_optimizer(optimizer, ckpt)
-        _truncate_log(out_dir / LOG, state.epoch)
-        print(f'resuming at epoch {state.epoch} (phase {state.phase})', file=sys.stderr)
-    else:
+        if group.main:
+            _truncate_log(out_dir / LOG, state.epoch)
+            print(f'resuming at epoch {state.epoch} (phase {state.phase})', file=sys.stderr)
+    elif group.main:
         # A fresh run must not inherit a previous run's log or best model.
         for stale in (LOG, BEST):
             (out_dir / stale).unlink(missing_ok=True)
@@ -111,9 +145,10 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
             optimizer = _optimizer(model, phase, cfg, state)
         start = time.monotonic()
         snapshot = (copy.deepcopy(model.state_dict()), copy.deepcopy(optimizer.state_dict()))
-        rng = seed_epoch(cfg['seed'], state.epoch)
-        train_loss, n_bad, n_steps = _train_epoch(model, task, phase, optimizer, cfg, state, rng)
-        val = task.validate(model, phase)
+        rng = seed_epoch(cfg['seed'], state.epoch, group.rank)
+        train_loss, n_bad, n_steps = _train_epoch(objective, task, phase, optimizer, cfg,
+                                                  state, rng, group)
+        val = _agreed(task.validate(model, phase), group)
         criterion = val['teacher'] if phase['kind'] == 'teacher' else val['score']
         rolled_back = not math.isfinite(criterion) or n_bad > cfg['max_bad_step_fraction'] * \
             max(n_steps, 1)
@@ -124,14 +159,15 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
             optimizer.load_state_dict(snapshot[1])
             state.rollbacks += 1
             state.lr_scale *= 0.5
-            for group in optimizer.param_groups:
-                group['lr'] = phase['lr'] * state.lr_scale
+            for param_group in optimizer.param_groups:
+                param_group['lr'] = phase['lr'] * state.lr_scale
             state.bad_epochs += 1
         else:
             if val['score'] < state.best_score:
                 state.best_score, state.best_epoch = val['score'], state.epoch
-                save_checkpoint(out_dir / BEST, model, {**checkpoint_config(),
-                                                        'val': val, 'epoch': state.epoch})
+                if group.main:
+                    save_checkpoint(out_dir / BEST, model, {**checkpoint_config(),
+                                                            'val': val, 'epoch': state.epoch})
             if criterion < state.phase_best * (1 - MIN_REL_IMPROVEMENT):
                 state.phase_best, state.bad_epochs = criterion, 0
             else:
@@ -144,7 +180,8 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
                   'seconds': round(time.monotonic() - start, 2)}
         state.epoch += 1
         state.phase_epoch += 1
-        state.elapsed_s += time.monotonic() - start
+        # The slowest rank's time, so that every rank meets the time limit together.
+        state.elapsed_s += group.max(time.monotonic() - start)
         stop_loss = phase.get('stop_loss')
         if state.phase_epoch >= phase['max_epochs'] or state.bad_epochs >= phase['patience'] \
                 or (stop_loss is not None and criterion <= stop_loss):
@@ -157,6 +194,8 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
         if state.phase >= len(phases):
             state.finished = True
             state.stop_reason = state.stop_reason or 'all phases done'
+        if not group.main:
+            continue
         _save_last(out_dir, model, optimizer, state, checkpoint_config())
         with open(out_dir / LOG, 'a') as f:
             f.write(json.dumps(record) + '\n')
@@ -172,17 +211,27 @@ def _optimizer(model: nn.Module, phase: dict, cfg: dict, state: LoopState):
                             weight_decay=cfg.get('weight_decay', 0.0))
 
 
-def _train_epoch(model, task, phase, optimizer, cfg, state, rng):
-    model.train()
-    params = [p for p in model.parameters() if p.requires_grad]
+def _agreed(val: dict, group: Group) -> dict:
+    """Average validation figures over ranks: equal everywhere, so decisions agree."""
+    keys = sorted(val)
+    sums = group.sum([float(val[k]) for k in keys])
+    return {k: s / group.world for k, s in zip(keys, sums, strict=True)}
+
+
+def _train_epoch(objective, task, phase, optimizer, cfg, state, rng, group):
+    objective.train()
+    params = [p for p in objective.parameters() if p.requires_grad]
     total, n_good, n_bad = 0.0, 0, 0
-    bar = tqdm(task.batches(phase, state.epoch, rng), desc=f'epoch {state.epoch}',
-               file=sys.stderr, disable=not cfg.get('progress', True), leave=False,
+    bar = tqdm(task.batches(phase, state.epoch, rng, group.shard),
+               desc=f'epoch {state.epoch}', file=sys.stderr,
+               disable=not (cfg.get('progress', True) and group.main), leave=False,
                mininterval=2.0)
-    for batch in bar:
+    for batch, weight in bar:
         optimizer.zero_grad(set_to_none=True)
-        loss = task.loss(model, phase, batch)
-        if not torch.isfinite(loss):
+        loss = objective(phase, batch) * weight if weight != 1.0 else objective(phase, batch)
+        # The global batch's loss; NaN on any rank makes every rank skip this step.
+        (global_loss,) = group.sum([float(loss.detach()) / group.world])
+        if not math.isfinite(global_loss):
             n_bad += 1
             continue
         loss.backward()
@@ -193,7 +242,7 @@ def _train_epoch(model, task, phase, optimizer, cfg, state, rng):
             optimizer.zero_grad(set_to_none=True)
             continue
         optimizer.step()
-        total += float(loss.detach())
+        total += global_loss
         n_good += 1
         bar.set_postfix(loss=f'{total / n_good:.4g}', refresh=False)
     return (total / n_good if n_good else math.nan), n_bad, n_good + n_bad

@@ -13,21 +13,26 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_models.data import RunArrays, Windows, forecast_windows, tiling_windows
-from hybrid_models.metrics import normalized_rmse_sum
+from hybrid_models.data import forecast_starts, gather_windows, tiling_starts, window_index
+from hybrid_models.metrics import normalized_rmse_sum_of, squared_error_sums
 from hybrid_models.models import predict
 from hybrid_models.nets import as_tensor
+from hybrid_models.training.distributed import Group, Shard
 from hybrid_models.training.loop import Task
 
+VAL_CHUNK = 1024  # validation windows evaluated at once (bounds memory, not results)
 
-def gather_next(per_run: list[np.ndarray], windows: Windows, length: int) -> np.ndarray:
-    """Rows ``a[t0-1+k]`` (k < length) of per-run arrays aligned with one-step inputs."""
-    out = np.empty((len(windows), length, per_run[0].shape[1]), dtype=np.float32)
-    steps = np.arange(length) - 1
-    for i, arr in enumerate(per_run):
-        rows = windows.run_index == i
-        if rows.any():
-            out[rows] = arr[windows.t0[rows, None] + steps]
+
+def gather_next(per_run: list, run_index: np.ndarray, t0: np.ndarray,
+                length: int) -> np.ndarray:
+    """Rows ``a[t0-1+k]`` (k < length) of per-run row sources aligned with one-step inputs."""
+    out = None
+    for i in np.unique(run_index):
+        at = np.flatnonzero(run_index == i)
+        part = per_run[i].rows(t0[at] - 1, length)
+        if out is None:
+            out = np.empty((len(t0),) + part.shape[1:], dtype=np.float32)
+        out[at] = part
     return out
 
 
@@ -35,76 +40,100 @@ class RecurrentTask(Task):
     """
     Training data and objectives for LSTM and hybrid models.
 
-    ``z_phy_train`` / ``z_phy_val``: per run, the physical model's one-step output
-    from the measured state, ``z_phy[t] = phy(z[t], c[t])`` (a prediction of z[t+1]);
-    needed only for teacher forcing.
+    ``train`` / ``val``: runs with ``rows(first, count)`` (``run_store.RunFile`` on disk
+    or ``RunArrays``); windows are cut a batch at a time, so memory holds batches only.
+    ``z_phy_train`` / ``z_phy_val``: per run, row sources of the physical model's one-step
+    output from the measured state, ``z_phy[t] = phy(z[t], c[t])`` (a prediction of
+    z[t+1]); needed only for teacher forcing. Validation windows are shared out over the
+    ranks of ``group`` and their error sums added up.
     """
 
-    def __init__(self, train: list[RunArrays], val: list[RunArrays], cfg: dict,
-                 state_std: np.ndarray, z_phy_train=None, z_phy_val=None):
+    def __init__(self, train: list, val: list, cfg: dict, state_std: np.ndarray,
+                 z_phy_train=None, z_phy_val=None, group: Group | None = None):
         self.train, self.val, self.cfg = train, val, cfg
-        self.state_std = torch.as_tensor(state_std, dtype=torch.float32)
+        self.group = group or Group()
+        self.device = self.group.device
+        self.state_std = as_tensor(state_std, self.device)
         self.state_std_np = np.asarray(state_std, dtype=np.float64)
         self.z_phy_train, self.z_phy_val = z_phy_train, z_phy_val
         v = cfg['validation']
-        self.val_windows = forecast_windows(val, cfg['window'], v['horizon'], v['stride'])
-        self._val_teacher = None
+        self.val_index = window_index([forecast_starts(r.length, cfg['window'], v['horizon'],
+                                                       v['stride']) for r in val])
+        if len(self.val_index[1]) == 0:
+            raise ValueError(f"no validation run is long enough for window {cfg['window']} "
+                             f"+ horizon {v['horizon']}")
 
     def _length(self, phase: dict) -> int:
         return int(phase.get('sequence_length') or self.cfg['sequence_length'])
 
-    def batches(self, phase: dict, epoch: int, rng: np.random.Generator):
-        """Shuffled tiling sequences with a fresh offset each epoch."""
+    def batches(self, phase: dict, epoch: int, rng: np.random.Generator, shard: Shard):
+        """Shuffled tiling sequences with a fresh offset each epoch; this rank's part."""
         length = self._length(phase)
-        w = tiling_windows(self.train, self.cfg['window'], length,
-                           int(rng.integers(0, length)))
-        z_phy = gather_next(self.z_phy_train, w, length) if phase['kind'] == 'teacher' \
-            else None
-        order = rng.permutation(len(w))
+        run_index, t0 = window_index(tiling_starts(self.train, self.cfg['window'], length,
+                                                   int(rng.integers(0, length))))
+        order = rng.permutation(len(t0))
         bs = self.cfg['batch_size']
         for i in range(0, len(order), bs):
-            idx = order[i:i + bs]
-            yield (w.subset(idx), None if z_phy is None else z_phy[idx])
+            dealt = shard.deal(order[i:i + bs])
+            if dealt is None:
+                continue
+            idx, weight = dealt
+            w = gather_windows(self.train, run_index[idx], t0[idx], self.cfg['window'],
+                               length)
+            z_phy = gather_next(self.z_phy_train, w.run_index, w.t0, length) \
+                if phase['kind'] == 'teacher' else None
+            yield (w, z_phy), weight
 
     def loss(self, model: nn.Module, phase: dict, batch) -> torch.Tensor:
         """Return the normalized MSE of the predicted states."""
         w, z_phy = batch
-        zw, cw, cf, target = (as_tensor(a) for a in (w.z_window, w.c_window, w.c_future,
-                                                     w.z_target))
+        zw, cw, cf, target = (as_tensor(a, self.device)
+                              for a in (w.z_window, w.c_window, w.c_future, w.z_target))
         if phase['kind'] == 'teacher':
-            z_phy = as_tensor(z_phy)
+            z_phy = as_tensor(z_phy, self.device)
             pred = z_phy + model.teacher_forced(zw, cw, cf, z_phy)
         else:
             pred = model.forecast(zw, cw, cf)
         return (((pred - target) / self.state_std) ** 2).mean()
 
+    def _my_chunks(self, run_index: np.ndarray, t0: np.ndarray):
+        """Yield (run_index, t0) chunks of this rank's share of windows."""
+        mine = np.arange(self.group.rank, len(t0), self.group.world)
+        for i in range(0, len(mine), VAL_CHUNK):
+            at = mine[i:i + VAL_CHUNK]
+            yield run_index[at], t0[at]
+
     @torch.no_grad()
     def validate(self, model: nn.Module, phase: dict) -> dict:
         """Multistep score (sum of per-state RMSE / std) and, in phase 1, teacher loss."""
-        pred = predict(model, self.val_windows)
-        out = {'score': normalized_rmse_sum(pred, self.val_windows.z_target,
-                                            self.state_std_np)}
+        v = self.cfg['validation']
+        sse, count = np.zeros(len(self.state_std_np)), 0
+        for ri, t0 in self._my_chunks(*self.val_index):
+            w = gather_windows(self.val, ri, t0, self.cfg['window'], v['horizon'])
+            part, n = squared_error_sums(predict(model, w), w.z_target)
+            sse, count = sse + part, count + n
+        *sse, count = self.group.sum([*sse, count])
+        out = {'score': normalized_rmse_sum_of(np.array(sse), count, self.state_std_np)}
         if phase['kind'] == 'teacher':
             out['teacher'] = self._teacher_loss(model, phase)
         return out
 
     def _teacher_loss(self, model, phase) -> float:
         length = self._length(phase)
-        if self._val_teacher is None:
-            w = tiling_windows(self.val, self.cfg['window'], length, 0)
-            self._val_teacher = (w, gather_next(self.z_phy_val, w, length))
-        w, z_phy = self._val_teacher
         model.eval()
+        total, count = 0.0, 0
         try:
-            losses = []
-            for i in range(0, len(w), 1024):
-                sub = w.subset(slice(i, i + 1024))
-                zp = as_tensor(z_phy[i:i + 1024])
-                pred = zp + model.teacher_forced(as_tensor(sub.z_window),
-                                                 as_tensor(sub.c_window),
-                                                 as_tensor(sub.c_future), zp)
-                err = ((pred - as_tensor(sub.z_target)) / self.state_std) ** 2
-                losses.append(err.mean(dim=(1, 2)))
-            return float(torch.cat(losses).mean())
+            index = window_index(tiling_starts(self.val, self.cfg['window'], length, 0))
+            for ri, t0 in self._my_chunks(*index):
+                w = gather_windows(self.val, ri, t0, self.cfg['window'], length)
+                zp = as_tensor(gather_next(self.z_phy_val, ri, t0, length), self.device)
+                zw, cw, cf, target = (as_tensor(a, self.device) for a in (
+                    w.z_window, w.c_window, w.c_future, w.z_target))
+                pred = zp + model.teacher_forced(zw, cw, cf, zp)
+                err = ((pred - target) / self.state_std) ** 2
+                total += float(err.mean(dim=(1, 2)).double().sum())
+                count += len(t0)
         finally:
             model.train()
+        total, count = self.group.sum([total, count])
+        return total / count

@@ -4,13 +4,18 @@ Train one model from a resolved config: data, physics fit, statistics, fit loop.
 ``train(cfg, out_dir)`` writes into ``out_dir``: ``model.safetensors`` (the best
 model by validation multistep error, with every figure of its config), ``best`` and
 ``last`` checkpoints, ``log.jsonl`` (one line per epoch) and ``config.yaml``.
+Under torchrun every rank calls ``train`` and trains its share
+(``hybrid_models.training.distributed``); only rank 0 writes those files.
 """
 
 from __future__ import annotations
 
+import hashlib
 import math
 from pathlib import Path
+import shutil
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -19,13 +24,15 @@ import yaml
 
 from hybrid_models.bound import output_range
 from hybrid_models.checkpoint import load_checkpoint, save_checkpoint
-from hybrid_models.data import dataset_hash, forecast_windows, load_runs, one_step_pairs
+from hybrid_models.data import dataset_hash, forecast_windows, load_runs
 from hybrid_models.metrics import normalized_rmse_sum
 from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
-from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import CompositeModel, RegressionModel
+from hybrid_models.run_store import RowFile, RowWriter, build_split
+from hybrid_models.streaming import Moments, RowSample
 from hybrid_models.training.config import fill_from_vessel
+from hybrid_models.training.distributed import Group, join, leave
 from hybrid_models.training.loop import BEST, LAST, LoopState, fit
 from hybrid_models.training.tasks import RecurrentTask
 from hybrid_models.vehicle import VehicleSpec, load_vessel
@@ -62,50 +69,100 @@ def check_windows(cfg: dict, spec: VehicleSpec) -> None:
                 f'horizon (vessel file or training config) or use longer runs')
 
 
-def train(cfg: dict, out_dir: str | Path, resume: bool = False) -> dict:
-    """Train the configured model; returns the final checkpoint's config."""
+def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'auto') -> dict:
+    """
+    Train the configured model; returns the final checkpoint's config.
+
+    ``device``: auto (a GPU when one is present), cpu or cuda. Launched by torchrun,
+    this process joins the job's process group for the duration of the call.
+    """
     if cfg['dataset'] is None:
         raise ValueError('the config names no dataset (key "dataset" or --dataset)')
     # Everything that can refuse the dataset runs before anything is written.
     spec = dataset_vessel(cfg)
     cfg = fill_from_vessel(cfg, spec)
     check_windows(cfg, spec)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    group = join(device)
+    try:
+        return _train(cfg, spec, Path(out_dir), resume, group)
+    finally:
+        leave(group)
+
+
+def _train(cfg: dict, spec: VehicleSpec, out_dir: Path, resume: bool, group: Group) -> dict:
     tcfg = cfg['training']
     torch.set_num_threads(int(tcfg['threads']))
     torch.manual_seed(tcfg['seed'])
-    (out_dir / 'config.yaml').write_text(yaml.safe_dump(cfg, sort_keys=False))
+    if group.main:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / 'config.yaml').write_text(yaml.safe_dump(cfg, sort_keys=False))
     t_start = time.monotonic()
-    train_runs = load_runs(cfg['dataset'], 'train', spec)
-    val_runs = load_runs(cfg['dataset'], 'val', spec)
+    cache = cache_dir(cfg, out_dir)
+    try:
+        return _train_cached(cfg, spec, out_dir, resume, group, cache, t_start)
+    finally:
+        group.barrier()
+        if group.local_rank == 0:
+            shutil.rmtree(cache, ignore_errors=True)
+
+
+def cache_dir(cfg: dict, out_dir: Path) -> Path:
+    """Directory of the run cache: the config's, else one per output directory in /tmp."""
+    given = cfg['training']['cache_dir']
+    if given is not None:
+        return Path(given)
+    key = hashlib.sha256(str(out_dir.resolve()).encode()).hexdigest()[:16]
+    return Path(tempfile.gettempdir()) / 'hybrid_models_cache' / key
+
+
+def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
+    tcfg = cfg['training']
+    ds = read_dataset(cfg['dataset'])
+    # One process per machine writes the cache; the others stream the same statistics.
+    writer = group.local_rank == 0
+    if writer:
+        cache.mkdir(parents=True, exist_ok=True)
+    stores = {split: build_split(ds, split, spec, cache, tcfg['statistics_rows'],
+                                 tcfg['seed'], writer) for split in ('train', 'val')}
+    group.barrier()
     base = {'dataset': {'path': str(cfg['dataset']), 'sha256': dataset_hash(cfg['dataset']),
-                        'train_runs': [r.run_id for r in train_runs],
-                        'val_runs': [r.run_id for r in val_runs]},
+                        'train_runs': [r.run_id for r in stores['train'].runs],
+                        'val_runs': [r.run_id for r in stores['val'].runs]},
             'vehicle': spec.to_dict(), 'training': cfg, 'name': cfg['name']}
-    z, c, _ = one_step_pairs(train_runs)
-    state_norm, control_norm = Normalizer.fit(z), Normalizer.fit(c)
+    state_norm = stores['train'].state.normalizer()
+    control_norm = stores['train'].control.normalizer()
     base['normalization'] = {'state': state_norm.to_dict(), 'control': control_norm.to_dict()}
     kind = cfg['model']['kind']
     if kind == 'qlag':
+        # A closed-form baseline fitted in memory; every rank fits, rank 0 writes.
+        train_runs = load_runs(ds, 'train', spec)
+        val_runs = load_runs(ds, 'val', spec)
         model, extra = _fit_qlag(cfg, spec, train_runs, val_runs, state_norm)
         summary = {**base, **extra, 'model': model.describe()}
-        save_checkpoint(out_dir / MODEL_FILE, model, summary)
+        if group.main:
+            save_checkpoint(out_dir / MODEL_FILE, model, summary)
         return summary
     model = build_model(cfg['model'], spec)
     model.set_normalization(state_norm, control_norm)
     z_phy_train = z_phy_val = None
     if isinstance(model, HybridModel):
-        z_phy_train, z_phy_val, phys_info = _prepare_physics(model, cfg, train_runs, val_runs)
+        z_phy_train, z_phy_val, phys_info = _prepare_physics(model, cfg, stores, cache,
+                                                             writer)
+        group.barrier()
         base.update(phys_info)
-    task = RecurrentTask(train_runs, val_runs, tcfg, state_norm.std, z_phy_train, z_phy_val)
+    model.to(group.device)
+    task = RecurrentTask(stores['train'].runs, stores['val'].runs, tcfg, state_norm.std,
+                         z_phy_train, z_phy_val, group=group)
     base['parameters'] = sum(p.numel() for p in model.parameters())
 
     def checkpoint_config() -> dict:
         return {**base, 'model': model.describe()}
 
     resume = resume and (out_dir / LAST).exists()
-    state: LoopState = fit(model, task, tcfg, out_dir, checkpoint_config, resume=resume)
+    state: LoopState = fit(model, task, tcfg, out_dir, checkpoint_config, resume=resume,
+                           group=group)
+    if not group.main:
+        return {**checkpoint_config(), 'epochs': state.epoch, 'rank': group.rank}
     best = load_checkpoint(out_dir / BEST if (out_dir / BEST).exists() else out_dir / LAST)
     model.load_state_dict(best.model_state)
     summary = {**checkpoint_config(), 'val': best.config.get('val'),
@@ -134,22 +191,46 @@ def _fit_qlag(cfg, spec, train_runs, val_runs, state_norm):
     return best[1], {'val': {'score': best[0]}, 'lag_scores': scores}
 
 
-def _prepare_physics(model: HybridModel, cfg, train_runs, val_runs):
-    """Fit the regression part, compute the output range, residual scale and bound."""
+def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: bool):
+    """
+    Fit the regression part, compute the output range, residual scale and bound.
+
+    The fit uses the pairs sample (all one-step pairs up to ``statistics_rows``); one
+    more streaming pass writes the one-step outputs ``z_phy`` of every run to the cache
+    (teacher forcing reads them) and takes the residual statistics and the 95 % range.
+    """
     physical = model.physical
-    z, c, z_next = one_step_pairs(train_runs)
-    physical.fit(z, c, z_next)
-    z_phy_train = [physical.predict(r.z[:-1], r.c[:-1]) for r in train_runs]
-    z_phy_val = [physical.predict(r.z[:-1], r.c[:-1]) for r in val_runs]
-    one_step = np.concatenate(z_phy_train)
-    residual = z_next - one_step
-    res_norm = Normalizer.fit(residual)
-    model.residual_std.copy_(torch.as_tensor(res_norm.std))
-    # The 95 % range is taken over training AND validation one-step outputs (paper).
-    r95 = output_range(np.concatenate([one_step] + z_phy_val))
+    ns, nc = model.spec.n_state, model.spec.n_control
+    pairs = stores['train'].pairs.rows()
+    physical.fit(pairs[:, :ns], pairs[:, ns:ns + nc], pairs[:, ns + nc:])
+    residual = Moments(ns)
+    squares = np.zeros(ns)
+    outputs = RowSample(cfg['training']['statistics_rows'], cfg['training']['seed'])
+    z_phy = {}
+    for split in ('train', 'val'):
+        z_phy[split] = []
+        for run in stores[split].runs:
+            path = cache / f'{run.run_id}.phy.f32'
+            writer = RowWriter(path if write else None)
+            prev = None
+            for block in run.chunks():
+                rows = block if prev is None else np.concatenate([prev, block])
+                one_step = physical.predict(rows[:-1, :ns], rows[:-1, ns:ns + nc])
+                writer.write(one_step)
+                # The 95 % range is taken over training AND validation outputs (paper).
+                outputs.add(one_step)
+                if split == 'train':
+                    error = rows[1:, :ns] - one_step
+                    residual.add(error)
+                    squares += (np.asarray(error, np.float64) ** 2).sum(axis=0)
+                prev = rows[-1:]
+            writer.close()
+            z_phy[split].append(RowFile(path, ns, run.length - 1))
+    model.residual_std.copy_(torch.as_tensor(residual.normalizer().std))
+    r95 = output_range(outputs.rows())
     model.output_range.copy_(torch.as_tensor(r95))
     model.set_threshold(cfg['model']['relative_threshold'])
-    one_step_rmse = np.sqrt((residual ** 2).mean(axis=0))
+    one_step_rmse = np.sqrt(squares / residual.n)
     info = {'physics': _physics_info(physical),
             'bound': {'definition': 'b_i = T * R_i / 2, R_i = q97.5 - q2.5 of one-step '
                                     'physical outputs on train+val',
@@ -158,7 +239,10 @@ def _prepare_physics(model: HybridModel, cfg, train_runs, val_runs):
                       'half_width': model.bound.tolist()},
             'physics_one_step_rmse': dict(zip(model.spec.state_names,
                                               one_step_rmse.tolist(), strict=True))}
-    return z_phy_train, z_phy_val, info
+    info['bound']['range_from'] = ('all one-step outputs' if outputs.complete else
+                                   f'a uniform sample of {outputs.capacity} of '
+                                   f'{outputs.seen} one-step outputs')
+    return z_phy['train'], z_phy['val'], info
 
 
 def _physics_info(physical) -> dict:
