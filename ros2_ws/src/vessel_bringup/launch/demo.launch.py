@@ -5,24 +5,18 @@ Launch the whole suite for one vessel: simulator, predictor and, optionally, a r
 [real_time_factor:=10.0] [record:=BAG_DIR]``, plus every argument of
 ``simulator.launch.py`` and ``predictor.launch.py``. With the defaults the topics are
 /vessel/odom, /vessel/actuators, /vessel/wind, /vessel/forecast, ... and the nodes time
-themselves by the simulator's /clock. ``record:=DIR`` also runs offline/record.py
-(``recorder:=PATH``; relative to the directory ``ros2 launch`` runs in, the repository
-root) on the namespace's odom, actuators and wind topics.
+themselves by the simulator's /clock. ``record:=DIR`` also runs the recorder
+(``vessel_recorder record``) on the namespace's odom, actuators and wind topics.
 """
 
 from pathlib import Path
-import sys
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import (
-    DeclareLaunchArgument,
-    ExecuteProcess,
-    IncludeLaunchDescription,
-    OpaqueFunction,
-)
+from launch.actions import DeclareLaunchArgument, IncludeLaunchDescription, OpaqueFunction
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
 from launch_ros.utilities import make_namespace_absolute, prefix_namespace
 
 from vessel_ros_bridge import messages
@@ -49,11 +43,11 @@ def recorder(context):
         context.launch_configurations.get('ros_namespace'),
         context.perform_substitution(LaunchConfiguration('namespace'))))
     topics = [prefix_namespace(namespace, topic) for topic in RECORDED]
-    cmd = [sys.executable, context.perform_substitution(LaunchConfiguration('recorder')),
-           '--out', out, '--topics', *topics]
+    arguments = ['--out', out, '--topics', *topics]
     if context.perform_substitution(LaunchConfiguration('use_sim_time')).lower() == 'true':
-        cmd.append('--use-sim-time')
-    return [ExecuteProcess(cmd=cmd, name='recorder', output='screen')]
+        arguments.append('--use-sim-time')
+    return [Node(package='vessel_recorder', executable='record', arguments=arguments,
+                 output='screen')]
 
 
 def generate_launch_description():
@@ -64,8 +58,6 @@ def generate_launch_description():
                         **DEMO_DEFAULTS),
         DeclareLaunchArgument('record', default_value='',
                               description='Bag directory to record into; empty: no recorder.'),
-        DeclareLaunchArgument('recorder', default_value='offline/record.py',
-                              description='Path of the recorder script (offline/record.py).'),
         included('ship_sim_node', 'simulator.launch.py'),
         included('hybrid_predictor', 'predictor.launch.py'),
         OpaqueFunction(function=recorder),
