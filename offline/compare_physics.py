@@ -26,17 +26,13 @@ from pathlib import Path
 import sys
 import time
 
-ROOT = Path(__file__).resolve().parents[1]
-for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_datasets'):
-    sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
+import numpy as np
+import torch
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-
-from hybrid_models import report  # noqa: E402
-from hybrid_models.checkpoint import CheckpointError, load_model  # noqa: E402
-from hybrid_models.data import dataset_hash, load_runs  # noqa: E402
-from hybrid_models.evaluation import (  # noqa: E402
+from hybrid_models import report
+from hybrid_models.checkpoint import CheckpointError, load_model
+from hybrid_models.data import dataset_hash, load_runs
+from hybrid_models.evaluation import (
     PhysicsOnly,
     evaluate_model,
     smallest_threshold,
@@ -44,12 +40,14 @@ from hybrid_models.evaluation import (  # noqa: E402
     threshold_sweep,
     trajectory_of,
 )
-from hybrid_models.training.config import evaluation_protocol  # noqa: E402
-from hybrid_models.training.train import MODEL_FILE  # noqa: E402
-from hybrid_models.vehicle import VehicleSpec  # noqa: E402
-from training_jobs import train_job  # noqa: E402
-from vessel_physics.augmented import load_physics  # noqa: E402
-from vessel_physics.errors import ConfigError  # noqa: E402
+from hybrid_models.training.config import evaluation_protocol
+from hybrid_models.training.train import MODEL_FILE
+from hybrid_models.vehicle import VehicleSpec
+from training_jobs import train_job
+from vessel_physics.augmented import load_physics
+from vessel_physics.errors import ConfigError
+
+ROOT = Path(__file__).resolve().parents[1]
 
 DEFAULT_CONFIG = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'hybrid_2p.yaml'
 DEFAULT_THRESHOLDS = [0.005, 0.01, 0.02, 0.03, 0.05, 0.075, 0.1, 0.15, 0.2, 0.3, 0.5]

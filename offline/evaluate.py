@@ -18,28 +18,26 @@ from pathlib import Path
 import sys
 import time
 
-ROOT = Path(__file__).resolve().parents[1]
-for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_datasets'):
-    sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
+import numpy as np
+import torch
 
-import numpy as np  # noqa: E402
-import torch  # noqa: E402
-
-from hybrid_models import report  # noqa: E402
-from hybrid_models.checkpoint import CheckpointError, load_model  # noqa: E402
-from hybrid_models.data import checked_vessel, dataset_hash, load_runs  # noqa: E402
-from hybrid_models.evaluation import (  # noqa: E402
+from hybrid_models import report
+from hybrid_models.checkpoint import CheckpointError, load_model
+from hybrid_models.data import checked_vessel, dataset_hash, load_runs
+from hybrid_models.evaluation import (
     PhysicsOnly,
     evaluate_model,
     residual_share,
     test_windows,
     threshold_sweep,
 )
-from hybrid_models.nets import HybridModel  # noqa: E402
-from hybrid_models.training.config import ConfigError, evaluation_protocol  # noqa: E402
-from hybrid_models.training.train import MODEL_FILE  # noqa: E402
-from hybrid_models.vehicle import VesselError  # noqa: E402
-from vessel_datasets.format import DatasetError  # noqa: E402
+from hybrid_models.nets import HybridModel
+from hybrid_models.training.config import ConfigError, evaluation_protocol
+from hybrid_models.training.train import MODEL_FILE
+from hybrid_models.vehicle import VesselError
+from vessel_datasets.format import DatasetError
+
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def _checkpoint_path(arg: str) -> Path:

@@ -24,13 +24,11 @@ import subprocess
 import sys
 import time
 
-ROOT = Path(__file__).resolve().parents[1]
-for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_datasets'):
-    sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
+from hybrid_models.checkpoint import CheckpointError, read_header
+from hybrid_models.evaluation import smallest_threshold
+from training_jobs import train_job
 
-from hybrid_models.checkpoint import CheckpointError, read_header  # noqa: E402
-from hybrid_models.evaluation import smallest_threshold  # noqa: E402
-from training_jobs import train_job  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 CONFIG = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config'
 PHYSICAL = ['min', 'pro', 'lin', 'hyd', 'min+lin', 'pro+lin', 'min+hyd', 'pro+hyd']

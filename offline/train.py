@@ -22,12 +22,10 @@ import json
 from pathlib import Path
 import sys
 
-ROOT = Path(__file__).resolve().parents[1]
-for _pkg in ('vessel_description', 'hybrid_models', 'vessel_physics', 'vessel_datasets'):
-    sys.path.insert(0, str(ROOT / 'ros2_ws' / 'src' / _pkg))
+from hybrid_models.training import ConfigError, load_config, train
+from hybrid_models.training.distributed import DEVICES
 
-from hybrid_models.training import ConfigError, load_config, train  # noqa: E402
-from hybrid_models.training.distributed import DEVICES  # noqa: E402
+ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv=None) -> int:
