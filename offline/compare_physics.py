@@ -41,9 +41,9 @@ from hybrid_models.evaluation import (
     trajectory_of,
 )
 from hybrid_models.training.config import evaluation_protocol
+from hybrid_models.training.jobs import train_job
 from hybrid_models.training.train import MODEL_FILE
 from hybrid_models.vehicle import VehicleSpec
-from training_jobs import train_job
 from vessel_physics.augmented import load_physics
 from vessel_physics.errors import ConfigError
 

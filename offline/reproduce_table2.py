@@ -20,13 +20,13 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 import json
 import math
 from pathlib import Path
-import subprocess
 import sys
 import time
 
 from hybrid_models.checkpoint import CheckpointError, read_header
+from hybrid_models.cli.evaluate import main as evaluate
 from hybrid_models.evaluation import smallest_threshold
-from training_jobs import train_job
+from hybrid_models.training.jobs import train_job
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -125,8 +125,7 @@ def main(argv=None) -> int:
                         best.replace('-2P', '-1P')]
     if args.smoke:
         eval_args += ['--horizon', '100', '--window', '20', '--stride', '100']
-    rc = subprocess.run([sys.executable, str(ROOT / 'offline' / 'evaluate.py')] + eval_args
-                        ).returncode
+    rc = evaluate(eval_args)
     if rc != 0:
         print('reproduce_table2.py: error: evaluation failed', file=sys.stderr)
         return rc

@@ -99,12 +99,7 @@ def test_truncated_checkpoint_is_refused(tmp_path):
 
 
 def test_evaluate_cli_refuses_a_hostile_file_with_one_line(tmp_path, capsys):
-    import importlib.util
-    from pathlib import Path
-    root = Path(__file__).resolve().parents[2]
-    spec = importlib.util.spec_from_file_location('evaluate', root / 'offline' / 'evaluate.py')
-    evaluate = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(evaluate)
+    from hybrid_models.cli import evaluate
     path = tmp_path / 'model.safetensors'
     path.write_bytes(pickle.dumps({'model': Boom()}))
     assert evaluate.main([str(path), '--dataset', str(tmp_path), '--out',

@@ -41,12 +41,9 @@ def test_smoke_hybrid_trains_both_phases_within_a_minute(toy, tmp_path):
      'model.bound_mode=clamp'],
 ])
 def test_other_kinds_train_and_evaluate(toy, tmp_path, overrides):
-    import importlib.util
     cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'] + overrides)
     train(cfg, tmp_path / 'run')
-    spec = importlib.util.spec_from_file_location('evaluate', ROOT / 'offline' / 'evaluate.py')
-    evaluate = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(evaluate)
+    from hybrid_models.cli import evaluate
     out = tmp_path / 'results'
     args = [str(tmp_path / 'run'), '--dataset', str(toy), '--out', str(out), '--horizon',
             '100', '--window', '20', '--stride', '100', '--labels', 'm', '--threads', '1']

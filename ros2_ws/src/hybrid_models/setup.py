@@ -20,5 +20,6 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='Hybrid physics + LSTM models, baselines and training (no ROS).',
     license='Apache-2.0',
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': ['train = hybrid_models.cli.train:main',
+                                     'evaluate = hybrid_models.cli.evaluate:main']},
 )

@@ -1,5 +1,5 @@
 """
-Trainings as resumable subprocesses of ``offline/train.py``, for tools that train several.
+Trainings as resumable subprocesses of the ``train`` program, for tools that train several.
 
 ``train_job(label, config, overrides, out)`` trains one model into ``out`` (kept when
 already finished, continued from its last epoch when a run was killed) and returns a
@@ -14,7 +14,8 @@ import time
 from hybrid_models.checkpoint import CheckpointError, read_header
 from hybrid_models.training import MODEL_FILE
 
-TRAIN_SCRIPT = Path(__file__).resolve().parent / 'train.py'
+# A process per training: its memory is returned when it ends, and a kill loses only it.
+TRAIN_MODULE = 'hybrid_models.cli.train'
 
 
 def finished(run_dir: Path) -> bool:
@@ -31,7 +32,7 @@ def train_job(label: str, config: Path, overrides: list[str], out: Path) -> dict
     out = Path(out)
     if finished(out):
         return {'label': label, 'status': 'kept', 'dir': str(out)}
-    cmd = [sys.executable, str(TRAIN_SCRIPT), str(config), '--out', str(out), '--resume',
+    cmd = [sys.executable, '-m', TRAIN_MODULE, str(config), '--out', str(out), '--resume',
            '--quiet'] + sum((['--set', s] for s in overrides), [])
     out.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
