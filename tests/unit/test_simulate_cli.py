@@ -47,10 +47,7 @@ def test_tiny_dataset_end_to_end(tmp_path):
 
 
 def test_chunking_does_not_change_the_runs(tmp_path):
-    from importlib import util
-    spec = util.spec_from_file_location('simulate_cli', SCRIPT)
-    cli = util.module_from_spec(spec)
-    spec.loader.exec_module(cli)
+    from vessel_datasets import simulate as cli
     a, b = tmp_path / 'a', tmp_path / 'b'
     assert cli.main(['--runs', '2', '--hours', '0.01', '--out', str(a), '--quiet',
                      '--chunk', '1']) == 0

@@ -20,5 +20,5 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='Dataset format and rosbag2/MCAP conversion (no ROS).',
     license='Apache-2.0',
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': ['simulate = vessel_datasets.simulate:main']},
 )
