@@ -65,7 +65,37 @@ def restoring_linear(z, c, params: VesselParams):
     return xp.stack([zero, zero, -params.restoring_roll * phi, zero], axis=-1)
 
 
-# Hull damping features (Blanke & Christensen 1993) and the coefficient of each per DOF.
+# The nonlinear hull terms of Blanke & Christensen (1993), as used for the patrol vessel
+# by Perez, Ross & Fossen (2006): one spelling, shared by the hull damping below, the
+# regression features (hybrid_models.physical.features) and the diagnosis library. The
+# spelling follows the coefficient names: |q| is the absolute value (``a<q>`` in a
+# coefficient, X|u|u -> Xauu), products are written without a sign (u r -> 'ur').
+# Name -> formula on a mapping of state arrays (u, v, p, r, phi); Array API operators.
+HULL_TERMS: dict[str, Callable] = {
+    '|u|u': lambda s: abs(s['u']) * s['u'],
+    'vr': lambda s: s['v'] * s['r'],
+    'rr': lambda s: s['r'] * s['r'],
+    'pr': lambda s: s['p'] * s['r'],
+    '|u|v': lambda s: abs(s['u']) * s['v'],
+    'ur': lambda s: s['u'] * s['r'],
+    'v|v|': lambda s: s['v'] * abs(s['v']),
+    'v|r|': lambda s: s['v'] * abs(s['r']),
+    'r|v|': lambda s: s['r'] * abs(s['v']),
+    'phi|uv|': lambda s: s['phi'] * abs(s['u'] * s['v']),
+    'phi|ur|': lambda s: s['phi'] * abs(s['u'] * s['r']),
+    'phiuu': lambda s: s['phi'] * s['u'] * s['u'],
+    '|u|p': lambda s: abs(s['u']) * s['p'],
+    'p|p|': lambda s: s['p'] * abs(s['p']),
+    'p': lambda s: s['p'],
+    'phi^3': lambda s: s['phi'] ** 3,
+    '|u|r': lambda s: abs(s['u']) * s['r'],
+    'r|r|': lambda s: s['r'] * abs(s['r']),
+    'phiu|r|': lambda s: s['phi'] * s['u'] * abs(s['r']),
+    'phiu|u|': lambda s: s['phi'] * s['u'] * abs(s['u']),
+}
+Z_COLUMNS = ('u', 'v', 'p', 'r', 'phi')   # the state vector z (module docstring)
+
+# The hull damping terms and the coefficient of each per DOF.
 HULL_DAMPING_FEATURES = ('|u|u', 'vr', '|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|',
                          'phi|ur|', 'phiuu', '|u|p', 'p|p|', 'p', '|u|r', 'r|r|', 'phiu|r|',
                          'phiu|u|')
@@ -90,15 +120,16 @@ _HULL_DAMPING_COEFFICIENTS = {   # feature -> (X, Y, K, N) parameter names
 }
 
 
+def hull_terms(names, states) -> list:
+    """Return the named ``HULL_TERMS`` evaluated on a mapping of state arrays."""
+    return [HULL_TERMS[name](states) for name in names]
+
+
 def hull_damping_features(z):
     """Return the hull damping features (..., 17) in the order of HULL_DAMPING_FEATURES."""
     xp = namespace(z)
-    u, v, p, r, phi = z[..., 0], z[..., 1], z[..., 2], z[..., 3], z[..., 4]
-    au, av, ar = xp.abs(u), xp.abs(v), xp.abs(r)
-    auu, aur = au * u, au * ar
-    return xp.stack([auu, v * r, au * v, u * r, v * av, v * ar, r * av, phi * (au * av),
-                     phi * aur, phi * (u * u), au * p, p * xp.abs(p), p, au * r, r * ar,
-                     phi * (u * ar), phi * auu], axis=-1)
+    states = {name: z[..., i] for i, name in enumerate(Z_COLUMNS)}
+    return xp.stack(hull_terms(HULL_DAMPING_FEATURES, states), axis=-1)
 
 
 @lru_cache(maxsize=32)
@@ -225,7 +256,8 @@ def roll_natural_frequency(params: VesselParams) -> float:
     return math.sqrt(params.restoring_roll / (params.Ixx - params.Kpdot))
 
 
-__all__ = ['DOFS', 'HULL_DAMPING_FEATURES', 'MIN_TERMS', 'PRO_TERMS', 'SIMULATOR_TERMS',
-           'TERMS', 'Term', 'hull_damping', 'hull_damping_features', 'hull_damping_matrix',
+__all__ = ['DOFS', 'HULL_DAMPING_FEATURES', 'HULL_TERMS', 'MIN_TERMS', 'PRO_TERMS',
+           'SIMULATOR_TERMS', 'TERMS', 'Term', 'Z_COLUMNS', 'hull_damping',
+           'hull_damping_features', 'hull_damping_matrix', 'hull_terms',
            'propulsion', 'restoring', 'restoring_linear', 'rigid_body_coriolis',
            'roll_natural_frequency', 'total_force', 'unit_thrust', 'wind']

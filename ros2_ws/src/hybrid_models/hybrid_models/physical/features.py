@@ -8,8 +8,8 @@ controls or adding features cannot shift them (a defect of the authors' library)
 - ``lin``: controls and states (Baier et al. eq. "Lin": z' = Q c + P z + b).
 - ``qua``: ``lin`` plus the square of every control and state (the quadcopter "Qua").
 - ``hyd``: ``lin`` plus the nonlinear hull terms of Blanke & Christensen (1993) as
-  used for the patrol vessel by Perez, Ross & Fossen (2006), written out in
-  ``BLANKE_TERMS``.
+  used for the patrol vessel by Perez, Ross & Fossen (2006), ``BLANKE_ORDER``; their
+  formulas and names are the physics' (``vessel_physics.terms.HULL_TERMS``).
 """
 
 from __future__ import annotations
@@ -20,41 +20,26 @@ from array_api_compat import array_namespace
 import torch
 
 from hybrid_models.vehicle import VehicleSpec
+from vessel_physics.terms import HULL_TERMS, hull_terms
 
 Term = Callable[[dict], torch.Tensor]
 
-# Nonlinear hull-force terms of the 4-DOF patrol-vessel model (Blanke & Christensen
-# 1993; Perez, Ross & Fossen 2006). Name -> formula in the states u, v, p, r, phi.
-BLANKE_TERMS: dict[str, Term] = {
-    'u|u|': lambda s: s['u'] * abs(s['u']),
-    'v*r': lambda s: s['v'] * s['r'],
-    'r*r': lambda s: s['r'] * s['r'],
-    'p*r': lambda s: s['p'] * s['r'],
-    '|u|v': lambda s: abs(s['u']) * s['v'],
-    'u*r': lambda s: s['u'] * s['r'],
-    'v|v|': lambda s: s['v'] * abs(s['v']),
-    'v|r|': lambda s: s['v'] * abs(s['r']),
-    'r|v|': lambda s: s['r'] * abs(s['v']),
-    'phi|uv|': lambda s: s['phi'] * abs(s['u'] * s['v']),
-    'phi|ur|': lambda s: s['phi'] * abs(s['u'] * s['r']),
-    'phi*u*u': lambda s: s['phi'] * s['u'] * s['u'],
-    '|u|p': lambda s: abs(s['u']) * s['p'],
-    'p|p|': lambda s: s['p'] * abs(s['p']),
-    'phi^3': lambda s: s['phi'] ** 3,
-    '|u|r': lambda s: abs(s['u']) * s['r'],
-    'r|r|': lambda s: s['r'] * abs(s['r']),
-    'phi*u|r|': lambda s: s['phi'] * s['u'] * abs(s['r']),
-    'phi*u|u|': lambda s: s['phi'] * s['u'] * abs(s['u']),
-}
+# The nonlinear hull-force terms of the 4-DOF patrol-vessel model, in the order of the
+# regression's columns (a checkpoint's weights follow it); formulas and spelling are
+# the physics' own (``vessel_physics.terms.HULL_TERMS``).
+BLANKE_ORDER = ('|u|u', 'vr', 'rr', 'pr', '|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|',
+                'phi|ur|', 'phiuu', '|u|p', 'p|p|', 'phi^3', '|u|r', 'r|r|', 'phiu|r|',
+                'phiu|u|')
+BLANKE_TERMS: dict[str, Term] = {name: HULL_TERMS[name] for name in BLANKE_ORDER}
 
 # Which terms appear in which generalized force (same sources). X holds the hull drag
 # and the Coriolis/centripetal products m(v r + xG r^2 - zG p r).
 DOF_TERMS: dict[str, tuple[str, ...]] = {
-    'X': ('u|u|', 'v*r', 'r*r', 'p*r'),
-    'Y': ('|u|v', 'u*r', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phi*u*u'),
-    'K': ('|u|v', 'u*r', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phi*u*u',
+    'X': ('|u|u', 'vr', 'rr', 'pr'),
+    'Y': ('|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phiuu'),
+    'K': ('|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phiuu',
           '|u|p', 'p|p|', 'phi^3'),
-    'N': ('|u|v', 'u*r', 'r|v|', 'phi|uv|', '|u|r', 'r|r|', 'phi*u|r|', 'phi*u|u|'),
+    'N': ('|u|v', 'ur', 'r|v|', 'phi|uv|', '|u|r', 'r|r|', 'phiu|r|', 'phiu|u|'),
 }
 
 # Forces acting on each state over one sample period. 'diagonal' reads Blanke's
@@ -128,7 +113,7 @@ class FeatureMap:
         if self.kind == 'qua':
             return xp.concat([linear, linear * linear], axis=-1)
         s = {name: z[..., i] for i, name in enumerate(self.spec.state_names)}
-        blanke = xp.stack([BLANKE_TERMS[t](s) for t in self.terms], axis=-1)
+        blanke = xp.stack(hull_terms(self.terms, s), axis=-1)
         return xp.concat([linear, blanke], axis=-1)
 
     def __call__(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
