@@ -12,7 +12,7 @@ Progress goes to stderr.
 Exit status: 0 after a clean stop, 1 if no requested topic was ever published, 2 on a
 usage error. Set ROS_DOMAIN_ID / ROS_AUTOMATIC_DISCOVERY_RANGE as for any node.
 
-example:
+Run it as, for instance,
   ros2 run vessel_recorder record --out trial1          # the simulator's topics
   ros2 run vessel_recorder record --topics /vessel/odom /imu/data --out trial2 \
       --max-bag-duration 3600
@@ -97,7 +97,7 @@ class Recorder:
 
     @property
     def missing(self) -> list[str]:
-        """Requested topics not subscribed yet."""
+        """Return the requested topics not subscribed yet."""
         return [t for t in self.wanted if t not in self.subscriptions]
 
     def discover(self) -> None:
@@ -168,7 +168,7 @@ def _nested_names(desc):
 
 
 def subscription_qos(offered) -> QoSProfile:
-    """QoS that matches every publisher: reliable/transient only if all offer it."""
+    """Return a QoS matching every publisher: reliable/transient only if all offer it."""
     reliable = all(p.reliability == ReliabilityPolicy.RELIABLE for p in offered)
     latched = bool(offered) and all(p.durability == DurabilityPolicy.TRANSIENT_LOCAL
                                     for p in offered)
