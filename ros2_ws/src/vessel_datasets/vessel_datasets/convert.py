@@ -28,9 +28,8 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
-from vessel_description.resources import data_dir
+from vessel_description.resources import data_dir, read_yaml
 
 from . import format as fmt
 from .bag_source import Bag, BagError, BagReader, MessageDefinitions, find_bags, format_ns, sha256
@@ -63,7 +62,7 @@ class Options:
     def from_yaml(cls, path: str | os.PathLike | None = None, **overrides) -> Options:
         """Defaults from a YAML file (the package's when None), then ``overrides``."""
         path = Path(path) if path else config_dir() / 'convert.yaml'
-        data = yaml.safe_load(path.read_text()) or {}
+        data = read_yaml(path, ValueError, 'conversion defaults') or {}
         unknown = set(data) - {f for f in cls.__dataclass_fields__}
         if unknown:
             raise ValueError(f'{path}: unknown keys {sorted(unknown)}')

@@ -22,9 +22,7 @@ from pathlib import Path
 import re
 from typing import Any
 
-import yaml
-
-from .resources import data_dir
+from .resources import data_dir, read_yaml
 from .vocabulary import (
     ACTUATOR_KINDS,
     ENVIRONMENT,
@@ -391,17 +389,6 @@ def load_vessel(name_or_path: str | os.PathLike) -> Vessel:
         path = shipped
     data = read_yaml(path, VesselError, 'vessel')
     return parse_vessel(data, str(path))
-
-
-def read_yaml(path: str | os.PathLike, error: type[Exception], what: str) -> Any:
-    """Return a YAML file's content; raise ``error`` with one line naming ``what`` and path."""
-    path = Path(path)
-    try:
-        return yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise error(f'{what} {path}: cannot read ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise error(f'{what} {path}: not valid YAML ({str(exc).splitlines()[0]})') from None
 
 
 def recording_map(vessel: Vessel, kind: str, override: str | os.PathLike | None,

@@ -23,8 +23,8 @@ from pathlib import Path
 import re
 
 import numpy as np
-import yaml
 
+from vessel_description.resources import read_yaml
 from vessel_diagnosis.predict import Variant
 from vessel_diagnosis.settings import config_dir
 from vessel_physics.augmented import ExtraTerm, Physics, term_function
@@ -242,12 +242,7 @@ def _candidate(item: Mapping, index: int, source: str) -> Candidate:
 def load_library(path: str | Path | None = None) -> Library:
     """Read a library YAML file (default: the package's config/library.yaml)."""
     path = Path(path) if path else config_dir() / 'library.yaml'
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except OSError as exc:
-        raise LibraryError(f'{path}: cannot read the library ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise LibraryError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') from None
+    data = read_yaml(path, LibraryError, 'the library') or {}
     items = data.get('candidates') if isinstance(data, Mapping) else None
     if not isinstance(items, list) or not items:
         raise LibraryError(f'{path}: expected a non-empty list under candidates:')

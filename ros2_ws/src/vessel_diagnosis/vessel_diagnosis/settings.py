@@ -11,8 +11,7 @@ from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
-import yaml
-
+from vessel_description.resources import data_dir, read_yaml
 from vessel_physics.errors import did_you_mean
 
 
@@ -144,22 +143,11 @@ class Settings:
 
 def config_dir() -> Path:
     """Directory of the packaged YAML files (source tree or colcon install)."""
-    here = Path(__file__).resolve().parent
-    candidates = [here.parent / 'config']
-    candidates += [p / 'share' / 'vessel_diagnosis' / 'config' for p in here.parents]
-    for candidate in candidates:
-        if (candidate / 'diagnosis.yaml').is_file():
-            return candidate
-    raise SettingsError('vessel_diagnosis: cannot find the package config directory')
+    return data_dir('vessel_diagnosis', __file__, 'config')
 
 
 def _read(path: Path) -> dict:
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except OSError as exc:
-        raise SettingsError(f'{path}: cannot read settings ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise SettingsError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') from None
+    data = read_yaml(path, SettingsError, 'settings') or {}
     if not isinstance(data, Mapping):
         raise SettingsError(f'{path}: expected a mapping of sections')
     return dict(data)

@@ -7,20 +7,13 @@ import math
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from vessel_description import resources
 from vessel_physics.errors import ConfigError, did_you_mean
 
 
 def read_yaml(path: str | Path, what: str) -> Any:
     """Return the YAML document of ``path``; ConfigError names the file and the reason."""
-    path = Path(path)
-    try:
-        return yaml.safe_load(path.read_text())
-    except OSError as exc:
-        raise ConfigError(f'{path}: cannot read {what} ({exc.strerror})') from None
-    except yaml.YAMLError as exc:
-        raise ConfigError(f'{path}: not valid YAML ({" ".join(str(exc).split())})') from None
+    return resources.read_yaml(path, ConfigError, what)
 
 
 def numeric_fields(data: Any, known: Iterable[str], numbers: Iterable[str], source: str,

@@ -28,6 +28,7 @@ import dataclasses
 from dataclasses import dataclass, fields
 from pathlib import Path
 
+from vessel_description.resources import data_dir
 from vessel_physics.errors import ConfigError
 from vessel_physics.files import check_ranges, numeric_fields, read_yaml
 
@@ -160,16 +161,8 @@ def load_vessel(path: str | Path) -> VesselParams:
 
 
 def config_dir() -> Path:
-    """Directory of the packaged YAML files (source tree or colcon/pip install)."""
-    here = Path(__file__).resolve().parent
-    candidates = [here.parent / 'config']
-    # colcon: install/<pkg>/lib/pythonX.Y/site-packages/<pkg> -> install/<pkg>/share/<pkg>
-    candidates += [p / 'share' / 'vessel_physics' / 'config' for p in here.parents]
-    for candidate in candidates:
-        if (candidate / 'patrol_vessel.yaml').is_file():
-            return candidate
-    raise ConfigError('vessel_physics: cannot find the package config directory '
-                      '(looked beside the sources and in share/vessel_physics/config)')
+    """Directory of the packaged YAML files (source tree or colcon install)."""
+    return data_dir('vessel_physics', __file__, 'config')
 
 
 def load_named_vessel(name: str, base: Path | None = None) -> VesselParams:

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import yaml
 
+from vessel_description.resources import read_yaml
+
 DEFAULTS: dict = {
     'name': 'unnamed',
     'dataset': None,            # dataset directory (vessel_datasets format); its
@@ -137,10 +139,7 @@ def fill_from_vessel(cfg: dict, vessel) -> dict:
 def load_config(path: str | Path, overrides: list[str] | None = None) -> dict:
     """Read a YAML config, apply dotted overrides ('dataset=DIR', 'model.hidden=128')."""
     path = Path(path)
-    try:
-        raw = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f'{path}: cannot read config ({exc})') from None
+    raw = read_yaml(path, ConfigError, 'config') or {}
     if not isinstance(raw, dict):
         raise ConfigError(f'{path}: a config must be a mapping')
     raw.setdefault('name', path.stem)
