@@ -25,9 +25,8 @@ import numpy as np
 
 from vessel_physics.augmented import Physics
 from vessel_physics.integrator import rk4_step
-from vessel_physics.mass import inverse_mass_matrix_T
 
-U, V, P, R, PHI, PSI = range(6)
+U, V, _, R, PHI, PSI = range(6)   # x = [u_r, v_r, p, r, phi, psi]
 N_STATE = 5
 
 
@@ -64,7 +63,6 @@ class Predictor:
         self.physics = physics
         self.dt = float(dt)
         self.substeps = int(substeps)
-        self._minv_t = inverse_mass_matrix_T(physics.params)
         self._blocks: list[tuple[slice, Variant]] = []
 
     def derivative(self, x: np.ndarray, c: np.ndarray, current: np.ndarray | None):
@@ -76,16 +74,19 @@ class Predictor:
             z_ground = z_water.copy()
             z_ground[:, U] += u_c
             z_ground[:, V] += v_c
-        tau = self.physics.force(z_water, c, z_ground)
+        extra = None
         for rows, variant in self._blocks:
             if variant.extra_force is not None:
-                tau[rows] += variant.extra_force(z_water[rows], c[rows], z_ground[rows])
+                extra = np.zeros_like(z_water[:, :4]) if extra is None else extra
+                extra[rows] += variant.extra_force(z_water[rows], c[rows], z_ground[rows])
         dx = np.empty_like(x)
-        dx[:, :4] = tau @ self._minv_t
+        dx[:, :N_STATE] = self.physics.derivative(z_water, c, z_ground, extra)
         for rows, variant in self._blocks:
-            if variant.minv_t is not None:
-                dx[rows, :4] = tau[rows] @ variant.minv_t
-        dx[:, PHI] = x[:, P]
+            if variant.minv_t is not None:   # a candidate that changes the mass matrix
+                tau = self.physics.force(z_water[rows], c[rows], z_ground[rows])
+                if extra is not None:
+                    tau += extra[rows]
+                dx[rows, :4] = tau @ variant.minv_t
         dx[:, PSI] = x[:, R] * np.cos(x[:, PHI])
         return dx
 

@@ -45,8 +45,9 @@ from vessel_physics.arrays import namespace
 from vessel_physics.candidates import CANDIDATES
 from vessel_physics.errors import ConfigError, did_you_mean
 from vessel_physics.files import read_yaml
+from vessel_physics.mass import accelerations
 from vessel_physics.params import VesselParams, config_dir, load_named_vessel, params_from_dict
-from vessel_physics.terms import DOFS, SIMULATOR_TERMS, TERMS, total_force
+from vessel_physics.terms import DOFS, SIMULATOR_TERMS, TERMS, Z_COLUMNS, total_force
 
 FORMAT = 'vessel-physics/1'
 ENV_VAR = 'VESSEL_PHYSICS_EXTRA'
@@ -62,6 +63,8 @@ def term_function(name: str):
         return TERMS[name].fn, TERMS[name].velocity
     raise KeyError(name)
 
+
+ROLL_RATE = Z_COLUMNS.index('p')
 
 @dataclass(frozen=True)
 class ExtraTerm:
@@ -111,6 +114,22 @@ class Physics:
         if self.extra_terms:
             tau = tau + self.extra_force(z_water, c, z_ground)
         return tau
+
+    def derivative(self, z_water, c, z_ground=None, extra_force=None):
+        """
+        Return z' (..., 5) for z = [u, v, p, r, phi]: the vessel's equation of motion.
+
+        M nu' = tau(z, c) (+ ``extra_force``, forces no term holds: waves, a hook), so
+        [u', v', p', r'] = M^-1 tau in FRD (m/s^2, rad/s^2), and phi' = p (rad/s). The one
+        equation of motion of the 4-DOF vessel: the simulator, the first-principles
+        models and the diagnosis integrate it.
+        """
+        xp = namespace(z_water)
+        tau = self.force(z_water, c, z_ground)
+        if extra_force is not None:
+            tau = tau + extra_force
+        return xp.concat([accelerations(tau, self.params),
+                          z_water[..., ROLL_RATE:ROLL_RATE + 1]], axis=-1)
 
     def extra_force(self, z_water, c, z_ground=None):
         """Sum of the extra terms only (..., 4); zeros when there are none."""

@@ -31,15 +31,15 @@ from collections.abc import Mapping
 import numpy as np
 
 from vessel_physics.actuators import rudder_rate, shaft_accel
+from vessel_physics.augmented import ExtraTerm, Physics
 from vessel_physics.config import SimConfig, load_hook
 from vessel_physics.current import CurrentField, draw_current
 from vessel_physics.integrator import kinematics, rk4_step
-from vessel_physics.mass import inverse_mass_matrix_T
 from vessel_physics.noise import CHANNELS, SensorNoise
 from vessel_physics.operator import Operator
-from vessel_physics.terms import hull_damping, propulsion, restoring, rigid_body_coriolis
+from vessel_physics.terms import DOFS, SIMULATOR_TERMS
 from vessel_physics.waves import WaveField, draw_waves
-from vessel_physics.wind import WindField, draw_wind, wind_force
+from vessel_physics.wind import WindField, draw_wind
 
 STATE = ('u', 'v', 'p', 'r', 'phi', 'psi', 'x', 'y', 'n', 'delta_port', 'delta_stbd')
 I_U, I_V, I_P, I_R, I_PHI, I_PSI, I_X, I_Y, I_N, I_DP, I_DS = range(len(STATE))
@@ -64,6 +64,7 @@ def _wrap(angle):
     """Wrap to (-pi, pi]."""
     return np.pi - np.mod(np.pi - angle, 2 * np.pi)
 
+WATER_TERMS = tuple(t for t in SIMULATOR_TERMS if t != 'wind')   # wind: scaled, below
 
 class Simulator:
     """Batch simulator; see the module docstring. All arrays are float64, SI units."""
@@ -80,7 +81,6 @@ class Simulator:
         self.seed = int(seed)
         self.run_offset = int(run_offset)
         self._hook = load_hook(config.extra_forces) if config.extra_forces else None
-        self._minv_t = inverse_mass_matrix_T(self.params)
         self.reset()
 
     # ------------------------------------------------------------------ set-up
@@ -103,6 +103,10 @@ class Simulator:
         self.operator = Operator(rngs['operator'], cfg.operator)
         self.noise = SensorNoise(rngs['noise'], cfg.noise)
         self._wind_on = cfg.wind.enabled and cfg.wind.force_scale > 0
+        # The vessel's force terms, the wind's at its configured scale (over ground).
+        wind = (ExtraTerm('wind', ''.join(DOFS), cfg.wind.force_scale),) if self._wind_on \
+            else ()
+        self.physics = Physics(self.params, terms=WATER_TERMS, extra_terms=wind)
         self._command = self.operator.setpoints(0.0)
         warmup_steps = int(round(cfg.warmup_s / cfg.dt))
         self._t = -warmup_steps * cfg.dt
@@ -126,7 +130,7 @@ class Simulator:
         def balance(q):
             z = np.zeros((self.n_runs, 5))
             z[:, 0], z[:, 1], z[:, 3], z[:, 4] = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-            return self._body_forces(z, c, z)
+            return self.physics.force(z, c)
 
         # Straight-ahead speed by bisection (X is monotonic in u), then Newton on all DOFs.
         lo, hi = np.zeros(self.n_runs), np.full(self.n_runs, MAX_SPEED)
@@ -169,15 +173,6 @@ class Simulator:
             c[:, 3], c[:, 4], c[:, 5] = 0.0, 1.0, 0.0
         return c
 
-    def _body_forces(self, z_water: np.ndarray, c: np.ndarray, z_ground: np.ndarray):
-        """Sum of the model's force terms (n_runs, 4), without waves and hook."""
-        p = self.params
-        tau = (rigid_body_coriolis(z_water, c, p) + restoring(z_water, c, p)
-               + hull_damping(z_water, c, p) + propulsion(z_water, c, p))
-        if self._wind_on:
-            tau += self.config.wind.force_scale * wind_force(z_ground, c, p)
-        return tau
-
     def _step(self, t: float) -> None:
         """One RK4 step of every run from time t (s)."""
         self._x = rk4_step(self._derivative, t, self._x, self.config.dt)
@@ -193,14 +188,12 @@ class Simulator:
             z_ground[:, 0] += u_c
             z_ground[:, 1] += v_c
         c = self._controls(t, x)
-        tau = self._body_forces(z_water, c, z_ground)
-        if self.waves.active:
-            tau += self.waves.forces(t, x[:, I_X], x[:, I_Y], psi)
+        extra = self.waves.forces(t, x[:, I_X], x[:, I_Y], psi) if self.waves.active else None
         if self._hook is not None:
-            tau = tau + self._call_hook(t, x, z_ground, c)
+            hook = self._call_hook(t, x, z_ground, c)
+            extra = hook if extra is None else extra + hook
         dx = np.empty_like(x)
-        dx[:, 0:4] = tau @ self._minv_t
-        dx[:, I_PHI] = x[:, I_P]
+        dx[:, :I_PHI + 1] = self.physics.derivative(z_water, c, z_ground, extra)
         north, east, dx[:, I_PSI] = kinematics(u, v, r, phi, psi)
         if self.current.active:
             c_north, c_east = self.current.ned(t)

@@ -25,9 +25,7 @@ from dataclasses import asdict
 
 from hybrid_models.physical.integrated import IntegratedModel
 from hybrid_models.vehicle import VehicleSpec, load_vessel
-from vessel_physics.arrays import namespace
 from vessel_physics.augmented import Physics, load_physics, physics_from_dict
-from vessel_physics.mass import accelerations
 from vessel_physics.params import load_named_vessel, params_from_dict
 from vessel_physics.terms import MIN_TERMS, PRO_TERMS
 
@@ -35,7 +33,6 @@ TERM_SETS = {'min': MIN_TERMS, 'pro': PRO_TERMS}
 PHYSICS_FILE_KIND = 'physics'
 # The vessel file whose vectors the 4-DOF terms of vessel_physics are written for.
 PHYSICS_FAMILY_VESSEL = 'patrol_boat'
-ROLL_RATE, ROLL_ANGLE = 2, 4   # columns of z = [u, v, p, r, phi]
 
 
 class FirstPrinciplesModel(IntegratedModel):
@@ -55,10 +52,8 @@ class FirstPrinciplesModel(IntegratedModel):
         self.params, self.params_source = physics.params, params_source
 
     def derivative(self, z, c):
-        """Z' = [M^-1 tau(z, c), p] (FRD; m/s^2, rad/s^2, rad/s), on Array API arrays."""
-        xp = namespace(z, c)
-        acc = accelerations(self.physics.force(z, c), self.params)
-        return xp.concat([acc, z[..., ROLL_RATE:ROLL_RATE + 1]], axis=-1)
+        """Z' = [M^-1 tau(z, c), p] (FRD; m/s^2, rad/s^2, rad/s): ``Physics.derivative``."""
+        return self.physics.derivative(z, c)
 
     @property
     def params_yaml(self) -> dict:
