@@ -131,10 +131,16 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
         truth[t] = (np.array([state[s] for s in STATES]), msg.pose.pose.position.x,
                     msg.pose.pose.position.y)
 
+    next_kept = [0]
+
     def on_forecast(msg):
+        # One forecast every `every` simulated seconds, whichever states the predictor
+        # forecast: at many times real time it skips states that waited as backlog, so
+        # a fixed grid of start times would miss most forecasts.
         t = int(round(m.seconds_from_stamp(msg.header.stamp) - START))
-        if t % every == 0:
+        if t >= next_kept[0]:
             forecasts[t] = msg
+            next_kept[0] = t + every
 
     if plan is not None:
         plan_message = ControlPlan(shaft_speed=plan[:, 0].tolist(),
