@@ -1,11 +1,13 @@
 """
 Launch two simulated vessels, each with its own predictor, side by side on one graph.
 
-``ros2 launch vessel_bringup two_vessels.launch.py [real_time_factor:=10.0]``: vessel
+``ros2 launch vessel_bringup two_vessels.launch.py [real_time_factor:=1.0]``: vessel
 ``boat1`` publishes /boat1/odom, ... and its predictor /boat1/forecast; ``boat2`` the
 same under /boat2. Frame ids carry the namespace (boat1/odom, boat1/base_link), so both
 share one TF tree. The nodes run on the wall clock and no simulator publishes /clock:
-two simulators stepping independently are not one clock.
+two simulators stepping independently are not one clock. So the simulators run in real
+time: faster, their stamps would run ahead of the wall clock, and the predictors refuse
+samples from the future.
 """
 
 from pathlib import Path
@@ -35,6 +37,6 @@ def generate_launch_description():
     """Return the two vessels."""
     return LaunchDescription([
         *node_arguments('ship_sim_node', 'simulator.yaml', ('real_time_factor',),
-                        real_time_factor='10.0'),
+                        real_time_factor='1.0'),
         *(vessel(namespace, seed) for namespace, seed in VESSELS),
     ])
