@@ -74,19 +74,15 @@ class Predictor:
             z_ground = z_water.copy()
             z_ground[:, U] += u_c
             z_ground[:, V] += v_c
-        extra = None
+        tau = self.physics.force(z_water, c, z_ground)
         for rows, variant in self._blocks:
             if variant.extra_force is not None:
-                extra = np.zeros_like(z_water[:, :4]) if extra is None else extra
-                extra[rows] += variant.extra_force(z_water[rows], c[rows], z_ground[rows])
+                tau[rows] += variant.extra_force(z_water[rows], c[rows], z_ground[rows])
         dx = np.empty_like(x)
-        dx[:, :N_STATE] = self.physics.derivative(z_water, c, z_ground, extra)
+        dx[:, :N_STATE] = self.physics.rates(tau, z_water)
         for rows, variant in self._blocks:
             if variant.minv_t is not None:   # a candidate that changes the mass matrix
-                tau = self.physics.force(z_water[rows], c[rows], z_ground[rows])
-                if extra is not None:
-                    tau += extra[rows]
-                dx[rows, :4] = tau @ variant.minv_t
+                dx[rows, :4] = tau[rows] @ variant.minv_t
         dx[:, PSI] = x[:, R] * np.cos(x[:, PHI])
         return dx
 

@@ -124,10 +124,14 @@ class Physics:
         equation of motion of the 4-DOF vessel: the simulator, the first-principles
         models and the diagnosis integrate it.
         """
-        xp = namespace(z_water)
         tau = self.force(z_water, c, z_ground)
         if extra_force is not None:
             tau = tau + extra_force
+        return self.rates(tau, z_water)
+
+    def rates(self, tau, z_water):
+        """Return z' (..., 5) under the total force ``tau`` (..., 4): [M^-1 tau, p]."""
+        xp = namespace(z_water)
         return xp.concat([accelerations(tau, self.params),
                           z_water[..., ROLL_RATE:ROLL_RATE + 1]], axis=-1)
 

@@ -9,6 +9,8 @@ model (with autograd) and the compiled forecast engine (jax).
 
 from __future__ import annotations
 
+from abc import ABCMeta, abstractmethod
+
 import torch
 
 from hybrid_models.physical.base import PhysicalModel
@@ -16,7 +18,7 @@ from hybrid_models.vehicle import VehicleSpec
 from vessel_physics.integrator import rk4_step
 
 
-class IntegratedModel(PhysicalModel):
+class IntegratedModel(PhysicalModel, metaclass=ABCMeta):
     """An equation of motion z' = f(z, c), integrated with ``substeps`` RK4 steps."""
 
     def __init__(self, spec: VehicleSpec, substeps: int = 4):
@@ -25,9 +27,9 @@ class IntegratedModel(PhysicalModel):
             raise ValueError(f'substeps must be >= 1, got {substeps}')
         self.substeps = int(substeps)
 
+    @abstractmethod
     def derivative(self, z, c):
         """Return z' (..., n_state) in the vehicle's units per second."""
-        raise NotImplementedError
 
     def array_step(self, z, c, repeat=None):
         """
