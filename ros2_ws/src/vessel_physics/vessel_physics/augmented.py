@@ -65,6 +65,7 @@ def term_function(name: str):
 
 
 ROLL_RATE = Z_COLUMNS.index('p')
+ALL_DOFS = ''.join(DOFS)   # an extra term acting on every DOF needs no mask
 
 @dataclass(frozen=True)
 class ExtraTerm:
@@ -80,7 +81,7 @@ class ExtraTerm:
         fn, velocity = term_function(self.term)
         z = z_ground if (velocity == 'ground' and z_ground is not None) else z_water
         tau = fn(z, c, params)
-        if self.dofs != ''.join(DOFS):
+        if self.dofs != ALL_DOFS:
             xp = namespace(tau)
             mask = [1.0 if d in self.dofs else 0.0 for d in DOFS]
             tau = tau * xp.asarray(mask, dtype=tau.dtype)

@@ -31,13 +31,13 @@ from collections.abc import Mapping
 import numpy as np
 
 from vessel_physics.actuators import rudder_rate, shaft_accel
-from vessel_physics.augmented import ExtraTerm, Physics
+from vessel_physics.augmented import ALL_DOFS, ExtraTerm, Physics
 from vessel_physics.config import SimConfig, load_hook
 from vessel_physics.current import CurrentField, draw_current
 from vessel_physics.integrator import kinematics, rk4_step
 from vessel_physics.noise import CHANNELS, SensorNoise
 from vessel_physics.operator import Operator
-from vessel_physics.terms import DOFS, SIMULATOR_TERMS
+from vessel_physics.terms import SIMULATOR_TERMS
 from vessel_physics.waves import WaveField, draw_waves
 from vessel_physics.wind import WindField, draw_wind
 
@@ -104,7 +104,7 @@ class Simulator:
         self.noise = SensorNoise(rngs['noise'], cfg.noise)
         self._wind_on = cfg.wind.enabled and cfg.wind.force_scale > 0
         # The vessel's force terms, the wind's at its configured scale (over ground).
-        wind = (ExtraTerm('wind', ''.join(DOFS), cfg.wind.force_scale),) if self._wind_on \
+        wind = (ExtraTerm('wind', ALL_DOFS, cfg.wind.force_scale),) if self._wind_on \
             else ()
         self.physics = Physics(self.params, terms=WATER_TERMS, extra_terms=wind)
         self._command = self.operator.setpoints(0.0)
