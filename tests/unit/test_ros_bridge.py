@@ -75,11 +75,21 @@ def test_parameter_specs_give_descriptors_with_ranges():
     assert name.value_range is None and name.descriptor().description == ''
 
 
+def test_a_parameter_may_stay_unset_with_a_declared_type():
+    (threshold,) = parse_specs({'t': {'default': None, 'type': 'double', 'range': [0, 2]}},
+                               'spec.yaml')
+    assert threshold.default is None and threshold.value_type is float
+    assert threshold.descriptor().floating_point_range[0].to_value == 2.0
+
+
 @pytest.mark.parametrize('data, match', [
     ({'a': {'default': 1, 'rnage': [0, 2]}}, "unknown keys \\['rnage'\\]"),
     ({'a': {'default': 5, 'range': [0, 2]}}, 'around the numeric default'),
     ({'a': {'description': 'no default'}}, 'at least a default'),
     ({'a': {'default': 'x', 'range': [0, 1]}}, 'around the numeric default'),
+    ({'a': {'default': None}}, 'default null needs a type'),
+    ({'a': {'default': 1.0, 'type': 'double'}}, 'give type only with default null'),
+    ({'a': {'default': None, 'type': 'string', 'range': [0, 1]}}, 'numeric default'),
 ])
 def test_bad_parameter_specs_name_the_file_and_parameter(data, match):
     with pytest.raises(ValueError, match=match) as info:

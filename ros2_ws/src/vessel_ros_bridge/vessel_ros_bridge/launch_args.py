@@ -8,6 +8,7 @@ only: it needs the ``launch`` and ``launch_ros`` packages, which a node does not
 
 from __future__ import annotations
 
+from launch import LaunchContext
 from launch.actions import DeclareLaunchArgument
 from launch.substitutions import LaunchConfiguration
 from launch_ros.parameter_descriptions import ParameterValue
@@ -41,11 +42,26 @@ def node_arguments(package: str, config: str, names: tuple[str, ...],
         description=specs[name].description) for name in names]
 
 
-def node_parameters(package: str, config: str, names: tuple[str, ...]) -> dict:
-    """Map parameters ``names`` to their launch arguments, typed as the specs' defaults."""
+def node_parameters(package: str, config: str, names: tuple[str, ...],
+                    context: LaunchContext | None = None) -> dict:
+    """
+    Map parameters ``names`` to their launch arguments, typed as the specs say.
+
+    A parameter that may stay unset (spec default null) is passed only when its argument
+    is not empty, which needs the launch ``context`` (build the node in an
+    ``OpaqueFunction``).
+    """
     specs = {spec.name: spec for spec in load_specs(package_config(package, config))}
-    out = {name: ParameterValue(LaunchConfiguration(name), value_type=type(specs[name].default))
-           for name in names}
+    out = {}
+    for name in names:
+        spec = specs[name]
+        if spec.default is None:
+            if context is None:
+                raise ValueError(f'{package}/{config}: {name} may stay unset; build the '
+                                 f'node in an OpaqueFunction and pass its context')
+            if not LaunchConfiguration(name).perform(context):
+                continue
+        out[name] = ParameterValue(LaunchConfiguration(name), value_type=spec.value_type)
     out['use_sim_time'] = ParameterValue(LaunchConfiguration('use_sim_time'), value_type=bool)
     return out
 
@@ -56,5 +72,7 @@ def prefixed_frame(frame: str) -> list:
 
 
 def _text(default) -> str:
-    # Launch arguments are strings; booleans as YAML reads them back.
+    # Launch arguments are strings; booleans as YAML reads them back; unset is empty.
+    if default is None:
+        return ''
     return str(default).lower() if isinstance(default, bool) else str(default)
