@@ -22,8 +22,9 @@ import numpy as np
 from tqdm import tqdm
 
 from hybrid_models.checkpoint import CheckpointError, read_header
+from hybrid_models.cli.set_threshold import threshold as threshold_value
 from hybrid_models.data import forecast_windows, load_runs
-from hybrid_models.engine import ForecastEngine
+from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import forecast_metrics
 from vessel_datasets.format import DatasetError, read_dataset
 
@@ -34,9 +35,10 @@ def parse_args(argv=None):
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('checkpoint', type=Path, help='hybrid model checkpoint (.safetensors)')
     parser.add_argument('--dataset', type=Path, required=True, help='dataset directory')
-    parser.add_argument('--threshold', type=float, default=0.15,
-                        help='relative threshold applied at inference (default 0.15; 0 keeps '
-                             "the checkpoint's)")
+    parser.add_argument('--threshold', type=threshold_value, default=None,
+                        help="relative threshold served (default: the checkpoint's own, "
+                             "which set_threshold writes; 0: physics alone; 'none': "
+                             'unbounded)')
     parser.add_argument('--horizon', type=int, default=900, help='forecast steps (default 900)')
     parser.add_argument('--stride', type=int, default=120,
                         help='samples between forecasts in a test run (default 120)')
@@ -44,7 +46,7 @@ def parse_args(argv=None):
     return parser.parse_args(argv)
 
 
-def evaluate(engine: ForecastEngine, dataset, horizon: int, stride: int) -> dict:
+def evaluate(engine: Forecaster, dataset, horizon: int, stride: int) -> dict:
     """Forecast the test split with the engine; return metrics and the per-call latency."""
     runs = load_runs(dataset, 'test', engine.spec)
     windows = forecast_windows(runs, engine.window, horizon, stride, target='true')
@@ -62,8 +64,8 @@ def evaluate(engine: ForecastEngine, dataset, horizon: int, stride: int) -> dict
     return metrics
 
 
-def card_text(path: Path, config: dict, engine: ForecastEngine, metrics: dict,
-              dataset, threshold: float) -> str:
+def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
+              dataset) -> str:
     """Return the Markdown card."""
     run = config.get('training', {})
     model = run.get('model', {})
@@ -82,7 +84,8 @@ def card_text(path: Path, config: dict, engine: ForecastEngine, metrics: dict,
         f'{model.get("hidden")} with an LSTM initializer over a {engine.window}-sample '
         f'window; {config.get("parameters")} trained parameters.',
         f'- **Constraint**: LSTM correction bounded to ± relative threshold x the physical '
-        f"model's 95 % output range; threshold {threshold:g} at inference gives bounds "
+        f"model's 95 % output range / 2; the checkpoint serves threshold "
+        f'{engine.relative_threshold}, which gives bounds '
         + ', '.join(f'{s} {b:.4g} {u}' for s, b, u in zip(states, engine.bound, units,
                                                           strict=True)) + '.',
         f'- **Training data**: `{data.get("path")}` (sha256 `{str(data.get("sha256"))[:16]}`'
@@ -118,22 +121,19 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     try:
         config = read_header(args.checkpoint)
-        engine = ForecastEngine.from_checkpoint(args.checkpoint)
+        engine = Forecaster.from_checkpoint(args.checkpoint, args.threshold)
         dataset = read_dataset(args.dataset)
-    except (CheckpointError, DatasetError, FileNotFoundError, TypeError) as exc:
+    except (CheckpointError, DatasetError, FileNotFoundError, TypeError, ValueError) as exc:
         print(f'model_card: error: {exc}', file=sys.stderr)
         return 2
-    threshold = args.threshold
-    if threshold > 0:
-        engine.model.set_threshold(threshold)
-        engine = ForecastEngine(engine.model, model_id=engine.model_id, config=engine.config)
     metrics = evaluate(engine, dataset, args.horizon, args.stride)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'MODEL_CARD.md').write_text(
-        card_text(args.checkpoint, config, engine, metrics, dataset, threshold))
+        card_text(args.checkpoint, config, engine, metrics, dataset))
     (args.out / 'model_card.json').write_text(json.dumps(
         {'checkpoint': args.checkpoint.name, 'model_id': engine.model_id,
-         'relative_threshold': threshold, 'bound': engine.bound.tolist(), **metrics},
+         'relative_threshold': engine.relative_threshold, 'bound': engine.bound.tolist(),
+         **metrics},
         indent=2))
     print(f'model_card: wrote {args.out / "MODEL_CARD.md"}')
     return 0

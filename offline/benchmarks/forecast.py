@@ -166,14 +166,14 @@ def run(args) -> dict:
     """Measure everything; return the figures."""
     import torch
 
-    from hybrid_models.engine import ForecastEngine
+    from hybrid_models.checkpoint import load_model
+    from hybrid_models.engine import Forecaster
 
     torch.set_num_threads(os.cpu_count() or 1)
     path = args.model or default_model()
-    engine = ForecastEngine.from_checkpoint(path)
-    engine.model.set_threshold(0.15)
-    engine = ForecastEngine(engine.model, model_id=engine.model_id, config=engine.config)
-    model, window, horizon = engine.model, engine.window, args.horizon
+    engine = Forecaster.from_checkpoint(path)          # served as the predictor serves it
+    model, _ = load_model(path)                         # the same weights in torch
+    window, horizon = engine.window, args.horizon
     z, c, future = inputs(window, horizon, batch=64)
     engine.warm_up(horizon, window=window, max_batch=64)
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import torch
 
-from hybrid_models.engine import ForecastEngine
+from hybrid_models.engine import Forecaster
 from hybrid_models.models import build_model
 from hybrid_models.physical import build_physical
 from vessel_description import load_vessel, parse_vessel
@@ -88,7 +88,7 @@ def test_the_compiled_engine_forecasts_what_torch_forecasts():
     with torch.no_grad():
         expected, phys, _ = model.forecast(t(np.tile(z, (2, 1, 1))), t(np.tile(c, (2, 1, 1))),
                                            t(future), return_parts=True)
-    got = ForecastEngine(model, dtype=np.float64).forecast(z, c, future)
+    got = Forecaster.from_model(model, dtype=np.float64).forecast(z, c, future)
     np.testing.assert_allclose(got.physics, phys.numpy(), rtol=1e-9, atol=1e-12)
     np.testing.assert_allclose(got.hybrid, expected.numpy(), rtol=1e-9, atol=1e-12)
     assert got.physics[1, -1, 2] > 0.0    # 20 deg of rudder: turning to starboard

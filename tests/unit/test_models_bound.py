@@ -24,8 +24,10 @@ def test_half_width_follows_the_papers_size_ratio():
     # Paper: physical range [-5, 5] and LSTM range [-1, 1] is a threshold of 20 %.
     assert half_width(0.2, np.array([10.0]))[0] == pytest.approx(1.0)
     assert math.isinf(half_width(None, np.array([10.0]))[0])
-    with pytest.raises(ValueError):
-        half_width(0.0, np.array([1.0]))
+    assert half_width(0.0, np.array([10.0]))[0] == 0.0     # T = 0: physics alone
+    for bad in (-0.1, math.nan):
+        with pytest.raises(ValueError):
+            half_width(bad, np.array([1.0]))
 
 
 @pytest.mark.parametrize('mode', ['tanh', 'clamp'])
@@ -37,6 +39,7 @@ def test_bound_is_never_exceeded(mode):
     y = apply_bound(x, bound, mode)
     assert (y[:, :4].abs() <= bound[:4]).all()
     assert torch.equal(y[:, 4], x[:, 4])          # infinite bound: untouched
+    assert torch.equal(apply_bound(x, torch.zeros(5), mode), torch.zeros_like(x))
     small = x[:, :4].abs() < 1e-3 * bound[:4]
     assert torch.allclose(y[:, :4][small], x[:, :4][small], rtol=1e-5)
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from hybrid_models.engine import ForecastEngine
+from hybrid_models.engine import Forecaster
 from hybrid_models.models import build_model
 from vessel_description import load_vessel
 
@@ -73,7 +73,7 @@ def test_engine_matches_the_torch_model_in_double_precision(physical):
     model = make_model(physical, threshold=0.15)
     z, c, future = inputs(batch=3)
     expected, expected_phys = torch_forecast(model, z, c, future, torch.float64)
-    engine = ForecastEngine(model, dtype=np.float64)
+    engine = Forecaster.from_model(model, dtype=np.float64)
     got = engine.forecast(z, c, future)
     assert got.hybrid.shape == (3, H, 5)
     np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)
@@ -84,7 +84,7 @@ def test_engine_in_float32_stays_close_and_respects_the_bound():
     model = make_model('pro+lin', threshold=0.05, mode='clamp')
     z, c, future = inputs(batch=4)
     expected, _ = torch_forecast(model, z, c, future, torch.float64)
-    got = ForecastEngine(make_model('pro+lin', threshold=0.05, mode='clamp')).forecast(
+    got = Forecaster.from_model(make_model('pro+lin', threshold=0.05, mode='clamp')).forecast(
         z, c, future)
     scale = np.abs(expected).max(axis=(0, 1)) + 1e-3
     assert np.max(np.abs(got.hybrid - expected) / scale) < 1e-3
@@ -96,16 +96,16 @@ def test_unconstrained_model_passes_the_residual_through():
     model = make_model('min', threshold=None)
     z, c, future = inputs(batch=1)
     expected, _ = torch_forecast(model, z, c, future, torch.float64)
-    got = ForecastEngine(model, dtype=np.float64).forecast(z, c, future[0])
+    got = Forecaster.from_model(model, dtype=np.float64).forecast(z, c, future[0])
     np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)
 
 
 SPLIT_CHECK = """
 import json, sys
 import numpy as np
-from hybrid_models.engine import ForecastEngine
+from hybrid_models.engine import Forecaster
 from tests.unit.test_models_engine import inputs, make_model
-engine = ForecastEngine(make_model('pro+lin', threshold=0.15), dtype=np.float64)
+engine = Forecaster.from_model(make_model('pro+lin', threshold=0.15), dtype=np.float64)
 z, c, future = inputs(batch=64)
 batch = engine.forecast(z, c, future)
 alone = [engine.forecast(z, c, future[k]) for k in (0, 31, 32, 63)]
@@ -129,3 +129,66 @@ def test_batches_use_every_core_and_give_each_plan_its_own_forecast():
     assert result['devices'] == cores
     assert result['shards'] == min(cores, 64 // 8)
     assert result['max_diff'] < 1e-9
+
+
+def test_the_threshold_has_one_meaning():
+    model = make_model('pro+lin', threshold=0.15)
+    z, c, future = inputs(batch=2)
+    served = Forecaster.from_model(model, dtype=np.float64)          # None: the model's own
+    assert served.relative_threshold == 0.15
+    np.testing.assert_allclose(served.bound, model.bound.double().numpy())
+    wider = Forecaster.from_model(model, relative_threshold=0.3, dtype=np.float64)
+    np.testing.assert_allclose(wider.bound, 0.3 * model.output_range.double().numpy() / 2)
+    physics = Forecaster.from_model(model, relative_threshold=0.0, dtype=np.float64)
+    got = physics.forecast(z, c, future)
+    np.testing.assert_array_equal(got.hybrid, got.physics)     # 0: the physics alone
+    assert np.abs(wider.forecast(z, c, future).hybrid - got.physics).max() > 0
+    with pytest.raises(ValueError, match='>= 0'):
+        Forecaster.from_model(model, relative_threshold=-0.1)
+
+
+def test_a_checkpoint_serves_the_threshold_written_into_it(tmp_path):
+    from hybrid_models.checkpoint import save_checkpoint
+    from hybrid_models.cli.set_threshold import main as set_threshold
+
+    model = make_model('hyd', threshold=None)
+    path = save_checkpoint(tmp_path / 'm.safetensors', model, {
+        'model': model.describe(), 'vehicle': SHIP.to_dict()})
+    assert Forecaster.from_checkpoint(path).relative_threshold is None
+    assert np.isinf(Forecaster.from_checkpoint(path).bound).all()
+    assert set_threshold([str(path), '0.2']) == 0
+    served = Forecaster.from_checkpoint(path, dtype=np.float64)
+    assert served.relative_threshold == 0.2
+    np.testing.assert_allclose(served.bound, 0.2 * model.output_range.double().numpy() / 2)
+    z, c, future = inputs(batch=2)
+    model.set_threshold(0.2)
+    expected, _ = torch_forecast(model, z, c, future, torch.float64)
+    np.testing.assert_allclose(served.forecast(z, c, future).hybrid, expected, rtol=1e-6)
+    with pytest.raises(SystemExit):                     # argparse refuses it in one line
+        set_threshold([str(path), '-1'])
+
+
+TORCH_FREE_CHECK = """
+import json, sys
+import numpy as np
+import hybrid_predictor.node as node
+from hybrid_models.engine import Forecaster
+engine = Forecaster.from_checkpoint(node.default_model_path())
+w = engine.window
+out = engine.forecast(np.tile([6.0, 0.0, 0.0, 0.0, 0.0], (w, 1)),
+                      np.tile([85.0, 0.0, 0.0, 3.0, 0.6, 0.8], (w, 1)),
+                      np.tile([85.0, 0.0, 0.0, 3.0, 0.6, 0.8], (1, 30, 1)))
+print(json.dumps({'torch': sorted(m for m in sys.modules if m.split('.')[0] == 'torch')[:3],
+                  'threshold': engine.relative_threshold,
+                  'finite': bool(np.isfinite(out.hybrid).all())}))
+"""
+
+
+def test_the_predictor_serves_the_shipped_model_without_importing_torch():
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, 'PYTHONPATH': os.pathsep.join(p for p in sys.path if p)}
+    out = subprocess.run([sys.executable, '-c', TORCH_FREE_CHECK], capture_output=True,
+                         text=True, cwd=root, env=env, timeout=240)
+    assert out.returncode == 0, out.stderr[-2000:]
+    result = json.loads(out.stdout.strip().splitlines()[-1])
+    assert result == {'torch': [], 'threshold': 0.15, 'finite': True}

@@ -29,9 +29,9 @@ def test_teacher_forcing_equals_stepping_with_true_states():
         z_prev = torch.cat([zw[:, -1:], z_true[:, :-1]], dim=1)
         z_phy = torch.stack([model.physical(z_prev[:, k], cf[:, k]) for k in range(9)], 1)
         fused = model.teacher_forced(zw, cw, cf, z_phy)
-        hc = model.initial_state(model.init, zw, cw)
+        recurrent = model.start(zw, cw)
         for k in range(9):
-            _, zp, res, hc = model.step(z_prev[:, k], cf[:, k], hc)
+            _, zp, res, recurrent = model.step(z_prev[:, k], cf[:, k], recurrent)
             torch.testing.assert_close(zp, z_phy[:, k])
             torch.testing.assert_close(res, fused[:, k], rtol=1e-5, atol=1e-6)
 

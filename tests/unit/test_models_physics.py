@@ -24,7 +24,7 @@ K_ROLL = P.rho * 9.81 * P.displacement * P.GM
 
 
 def model(kind, substeps=10):
-    return build_physical({'kind': kind, 'substeps': substeps}, SHIP).double()
+    return build_physical({'kind': kind, 'substeps': substeps}, SHIP)
 
 
 def t(*rows):

@@ -6,7 +6,7 @@ import torch
 import yaml
 
 from hybrid_models.checkpoint import load_model, save_checkpoint
-from hybrid_models.engine import ForecastEngine
+from hybrid_models.engine import Forecaster
 from hybrid_models.models import build_model
 from hybrid_models.physical import build_physical
 from tests.unit.test_models_engine import inputs, make_model, torch_forecast
@@ -33,7 +33,7 @@ def physics_file(tmp_path, terms, extra=(), name='physics.yaml'):
 
 
 def physical(cfg):
-    return build_physical({'substeps': 4, **cfg}, SHIP).double()
+    return build_physical({'substeps': 4, **cfg}, SHIP)
 
 
 def test_a_physics_file_with_pro_terms_is_pro(tmp_path):
@@ -91,6 +91,6 @@ def test_compiled_engine_runs_the_physics_file(tmp_path):
                        threshold=0.15)
     z, c, future = inputs(batch=3)
     expected, expected_phys = torch_forecast(model, z, c, future, torch.float64)
-    got = ForecastEngine(model, dtype=np.float64).forecast(z, c, future)
+    got = Forecaster.from_model(model, dtype=np.float64).forecast(z, c, future)
     np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)
     np.testing.assert_allclose(got.physics, expected_phys, rtol=1e-9, atol=1e-11)

@@ -16,7 +16,7 @@ class Halving(PhysicalModel):
 
     kind = 'halving'
 
-    def forward(self, z, c):
+    def step(self, z, c, arrays, repeat=None):
         return 0.5 * z
 
 
@@ -41,7 +41,7 @@ def test_lin_fits_a_linear_system_exactly():
     rng = np.random.default_rng(2)
     P, Q, b = rng.normal(size=(5, 5)) * 0.1, rng.normal(size=(5, 6)) * 0.01, rng.normal(size=5)
     z_next = z @ P.T + c @ Q.T + b
-    model = build_physical({'kind': 'lin', 'ridge': 0.0}, SHIP).double().fit(z, c, z_next)
+    model = build_physical({'kind': 'lin', 'ridge': 0.0}, SHIP).fit(z, c, z_next)
     np.testing.assert_allclose(model.predict(z, c), z_next, atol=1e-9)
     coef = model.coefficients()
     assert coef['u']['v'] == pytest.approx(P[0, 1], abs=1e-9)
@@ -51,23 +51,24 @@ def test_lin_fits_a_linear_system_exactly():
 def test_hyd_masked_coefficients_stay_zero():
     z, c = random_pairs()
     target = z + 0.01 * np.abs(z[:, [0]]) * z[:, [1]]   # |u|v acts on every state
-    model = build_physical({'kind': 'hyd', 'masks': 'diagonal'}, SHIP).double()
+    model = build_physical({'kind': 'hyd', 'masks': 'diagonal'}, SHIP)
     model.fit(z, c, target)
     j = model.features.names.index('|u|v')
     u_row, phi_row = 0, 4
     # |u|v is a sway/roll/yaw term: not in the surge or (diagonal) roll-angle rows.
-    assert model.weight[u_row, j] == 0 and model.weight[phi_row, j] == 0
-    assert model.weight[1, j] == pytest.approx(0.01, rel=1e-6)
+    weight = model.arrays()['weight']
+    assert weight[u_row, j] == 0 and weight[phi_row, j] == 0
+    assert weight[1, j] == pytest.approx(0.01, rel=1e-6)
 
 
 def test_composite_fits_the_first_principles_one_step_residual():
     z, c = random_pairs()
     z_next = 0.5 * z + 0.01 * c[:, :5] + 0.2
     reg = build_physical({'kind': 'lin', 'ridge': 0.0}, SHIP)
-    model = CompositeModel(Halving(SHIP), reg).double().fit(z, c, z_next)
+    model = CompositeModel(Halving(SHIP), reg).fit(z, c, z_next)
     assert model.kind == 'halving+lin'
     # The regression learned only the residual: no weight on the states.
-    w = model.regression.weight.numpy()
+    w = model.arrays()['regression.weight']
     np.testing.assert_allclose(w[:, 6:], 0.0, atol=1e-9)
     np.testing.assert_allclose(model.predict(z, c), z_next, atol=1e-9)
 
@@ -83,3 +84,16 @@ def test_regression_is_differentiable_in_torch():
     z = torch.ones(3, 5, requires_grad=True)
     model(z, torch.ones(3, 6)).sum().backward()
     assert z.grad is not None
+
+
+def test_learned_values_round_trip_and_are_checked():
+    z, c = random_pairs()
+    model = build_physical({'kind': 'pro+hyd'}, SHIP).fit(z, c, 0.9 * z)
+    arrays = model.arrays()
+    assert set(arrays) == {'regression.weight', 'regression.bias', 'regression.fitted'}
+    fresh = build_physical(model.describe(), SHIP).load_arrays(arrays)
+    np.testing.assert_array_equal(fresh.predict(z, c), model.predict(z, c))
+    with pytest.raises(ValueError, match='shape'):
+        fresh.load_arrays({**arrays, 'regression.bias': np.zeros(3)})
+    with pytest.raises(ValueError, match='learned values'):
+        fresh.load_arrays({'regression.weight': arrays['regression.weight']})

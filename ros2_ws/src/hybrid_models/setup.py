@@ -21,5 +21,6 @@ setup(
     description='Hybrid physics + LSTM models, baselines and training (no ROS).',
     license='Apache-2.0',
     entry_points={'console_scripts': ['train = hybrid_models.cli.train:main',
-                                     'evaluate = hybrid_models.cli.evaluate:main']},
+                                     'evaluate = hybrid_models.cli.evaluate:main',
+                                     'set_threshold = hybrid_models.cli.set_threshold:main']},
 )

@@ -53,6 +53,7 @@ ament_export_dependencies(rosidl_default_runtime)
 ament_package()
 """
 TOPICS = ('/sensor', '/ctrl_fb_boat')
+THRESHOLD = 0.15   # the relative threshold the replayed predictor serves (-p below)
 
 
 def build_messages(msg_dir: Path, workspace: Path) -> Path:
@@ -114,7 +115,7 @@ def main() -> int:
     from rclpy.executors import SingleThreadedExecutor
     from snumsg_pkg.msg import Control, Sensor
 
-    from hybrid_models.engine import ForecastEngine
+    from hybrid_models.engine import Forecaster
     from hybrid_predictor.input_window import InputWindow, channel_reader
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_datasets.topic_map import topic_map_for
@@ -124,7 +125,8 @@ def main() -> int:
     exe = REPO / 'ros2_ws/install/hybrid_predictor/lib/hybrid_predictor/predictor'
     log = open(work / 'predictor.log', 'w')
     predictor = subprocess.Popen([str(exe), '--ros-args', '-p', f'model_path:={args.model}',
-                                  '-p', 'vessel:=snuboat'], env=env, stdout=log,
+                                  '-p', 'vessel:=snuboat', '-p',
+                                  f'relative_threshold:={THRESHOLD}'], env=env, stdout=log,
                                  stderr=subprocess.STDOUT, start_new_session=True)
     rclpy.init()
     node = rclpy.create_node('snuboat_replay')
@@ -168,10 +170,7 @@ def main() -> int:
     predictor.terminate()
     predictor.wait(10)
 
-    engine = ForecastEngine.from_checkpoint(args.model)
-    model = engine.model
-    model.set_threshold(0.15)  # the predictor's default relative_threshold
-    engine = ForecastEngine(model, model_id=engine.model_id, config=engine.config)
+    engine = Forecaster.from_checkpoint(args.model, THRESHOLD)
     diffs, scale = [], None
     for fc in forecasts:
         t_end = fc.header.stamp.sec + fc.header.stamp.nanosec * 1e-9

@@ -11,6 +11,13 @@ output of state i lies in [-b_i, b_i] with
 where R_i, "the 95 % range", is the spread between the 2.5th and 97.5th percentiles
 of the physical model's ONE-STEP outputs (teacher-forced from measured states) over
 the training and validation runs, in the state's own unit.
+
+One meaning of T everywhere (training configs, checkpoints, ``set_threshold``, the
+forecaster, the predictor node): T > 0 bounds the correction to T R / 2; 0 keeps the
+physics alone (b = 0, the correction is zero); inf leaves it unbounded. None means no
+threshold is given: a training config or a checkpoint without one is unbounded, and a
+forecaster given none serves its checkpoint's own. The bound itself is written against
+the Array API, so training (torch) and serving (jax) run this one code.
 """
 
 from __future__ import annotations
@@ -18,7 +25,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import torch
+
+from vessel_physics.arrays import namespace
 
 BOUND_MODES = ('tanh', 'clamp')
 PERCENTILES = (2.5, 97.5)
@@ -31,31 +39,32 @@ def output_range(z_phy: np.ndarray) -> np.ndarray:
 
 
 def half_width(relative_threshold: float | None, out_range: np.ndarray) -> np.ndarray:
-    """Bound b_i = T R_i / 2 (inf everywhere when T is None: unconstrained)."""
+    """Bound b_i = T R_i / 2 (inf everywhere when T is None: unconstrained; 0 when T = 0)."""
     if relative_threshold is None:
         return np.full(np.shape(out_range), math.inf)
-    if relative_threshold <= 0:
-        raise ValueError(f'relative threshold must be > 0, got {relative_threshold}')
+    if not relative_threshold >= 0:
+        raise ValueError(f'relative threshold must be >= 0 or None, got {relative_threshold}')
     return relative_threshold * np.asarray(out_range, dtype=np.float64) / 2.0
 
 
-def apply_bound(x: torch.Tensor, bound: torch.Tensor, mode: str = 'tanh') -> torch.Tensor:
+def apply_bound(x, bound, mode: str = 'tanh'):
     """
-    Limit x to [-bound, bound] per last-axis channel; infinite bounds pass x through.
+    Limit x to [-bound, bound] per last-axis channel, on any Array API arrays.
 
-    'tanh' is smooth, b tanh(x / b): slope 1 near zero, so small corrections pass
-    almost unchanged and gradients never vanish abruptly; |output| <= b holds exactly in
-    floating point because |tanh| <= 1. 'clamp' is the hard limit (zero gradient
-    outside).
+    Infinite bounds pass x through; zero bounds give zero. 'tanh' is smooth,
+    b tanh(x / b): slope 1 near zero, so small corrections pass almost unchanged and
+    gradients never vanish abruptly; |output| <= b holds exactly in floating point
+    because |tanh| <= 1. 'clamp' is the hard limit (zero gradient outside).
     """
-    finite = torch.isfinite(bound)
-    if not bool(finite.any()):
-        return x
-    safe = torch.where(finite, bound, torch.ones_like(bound))
-    if mode == 'tanh':
-        limited = safe * torch.tanh(x / safe)
-    elif mode == 'clamp':
-        limited = torch.maximum(torch.minimum(x, safe), -safe)
-    else:
+    if mode not in BOUND_MODES:
         raise ValueError(f'unknown bound mode {mode!r}; use {BOUND_MODES}')
-    return torch.where(finite, limited, x)
+    xp = namespace(x, bound)
+    finite = xp.isfinite(bound)
+    positive = finite & (bound > 0)
+    # Stand-in 1 where the bound is inf or 0, so that no division makes a nan.
+    safe = xp.where(positive, bound, xp.ones_like(bound))
+    if mode == 'tanh':
+        limited = safe * xp.tanh(x / safe)
+    else:
+        limited = xp.clip(x, -safe, safe)
+    return xp.where(positive, limited, xp.where(finite, xp.zeros_like(x), x))

@@ -6,8 +6,8 @@ Layout: tensors ``model/<state_dict key>`` (and, for resumable training files,
 ``format = hybrid-models-checkpoint/1`` and ``config``, a JSON document with the model
 kind and architecture, normalization, output range and bound, physics description
 and parameter YAML, dataset hash, training config and metrics. The header is plain
-JSON after an 8-byte length, so other languages (e.g. a JAX exporter) read it
-directly.
+JSON after an 8-byte length, so other languages read it directly; serving reads it
+without torch (``hybrid_models.checkpoint_format``).
 
 Loading never unpickles: the header is parsed and checked before any tensor is
 read, and anything that is not our format is refused with one ``CheckpointError``
@@ -20,24 +20,18 @@ from dataclasses import dataclass, field
 import json
 import os
 from pathlib import Path
-import struct
 
 from safetensors import SafetensorError
 from safetensors.torch import load_file, save_file
 import torch
 from torch import nn
 
+from hybrid_models.checkpoint_format import FORMAT, CheckpointError, read_header, vessel_of
 from hybrid_models.models import build_model
 from hybrid_models.vehicle import VehicleSpec
 
-FORMAT = 'hybrid-models-checkpoint/1'
-# A header larger than this is not one of ours (ours are a few hundred kB at most).
-MAX_HEADER_BYTES = 64 * 1024 * 1024
-
-
-class CheckpointError(ValueError):
-    """A file is not a readable hybrid_models checkpoint."""
-
+__all__ = ['FORMAT', 'Checkpoint', 'CheckpointError', 'load_checkpoint', 'load_model',
+           'read_header', 'restore_optimizer', 'save_checkpoint', 'upgrade_checkpoint']
 
 @dataclass
 class Checkpoint:
@@ -80,30 +74,6 @@ def _json_default(value):
     if isinstance(value, (Path, tuple)):
         return str(value) if isinstance(value, Path) else list(value)
     raise TypeError(f'cannot store {type(value).__name__} in a checkpoint config')
-
-
-def read_header(path: str | Path) -> dict:
-    """Read the checkpoint's JSON config from the header alone; refuse foreign files."""
-    path = Path(path)
-    not_ours = f'{path}: not a hybrid_models checkpoint'
-    try:
-        with open(path, 'rb') as f:
-            raw_len = f.read(8)
-            if len(raw_len) < 8:
-                raise CheckpointError(f'{not_ours} (too short)')
-            (n,) = struct.unpack('<Q', raw_len)
-            if n > min(MAX_HEADER_BYTES, path.stat().st_size - 8):
-                raise CheckpointError(f'{not_ours} (no safetensors header)')
-            header = json.loads(f.read(n).decode('utf-8'))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise CheckpointError(f'{not_ours} ({type(exc).__name__})') from None
-    meta = header.get('__metadata__') if isinstance(header, dict) else None
-    if not isinstance(meta, dict) or meta.get('format') != FORMAT:
-        raise CheckpointError(f'{not_ours} (format is not {FORMAT})')
-    try:
-        return json.loads(meta['config'])
-    except (KeyError, TypeError, json.JSONDecodeError):
-        raise CheckpointError(f'{path}: damaged hybrid_models checkpoint (config)') from None
 
 
 def load_checkpoint(path: str | Path) -> Checkpoint:
@@ -161,11 +131,8 @@ def upgrade_checkpoint(path: str | Path, vessel: VehicleSpec) -> None:
 def load_model(path: str | Path) -> tuple[nn.Module, dict]:
     """Rebuild a trained model from its checkpoint; returns (model in eval mode, config)."""
     ckpt = load_checkpoint(path)
-    if 'format' not in (ckpt.config.get('vehicle') or {}):
-        raise CheckpointError(f'{path}: made before vessel files (no vessel description); '
-                              f'give it one with hybrid_models.checkpoint.upgrade_checkpoint')
+    spec = vessel_of(ckpt.config, path)
     try:
-        spec = VehicleSpec.from_dict(ckpt.config['vehicle'])
         model = build_model(ckpt.config['model'], spec)
         model.load_state_dict(ckpt.model_state)
     except (KeyError, TypeError, ValueError, RuntimeError) as exc:

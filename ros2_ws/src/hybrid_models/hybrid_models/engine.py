@@ -1,21 +1,21 @@
 """
 Compiled forecasts of a trained hybrid model, fast enough for online use and MPC.
 
-The training code runs the hybrid model step by step in PyTorch, which costs a few
-hundred microseconds of dispatch per step: a 900-step forecast would take a good part
-of a second. This engine takes the trained weights and runs the same computation as
-one XLA program (``jax.lax.scan`` over the horizon, ``jax.jit`` compiled once per batch
-size), batched over candidate control plans.
+``Forecaster.from_checkpoint(path, relative_threshold=None)`` is how a trained hybrid
+is served. It reads the checkpoint with safetensors' numpy reader and never imports
+torch: the physical part is the framework-free ``hybrid_models.physical`` model of the
+checkpoint's description, and every sample period is ``hybrid_models.hybrid_step``, the
+very code training runs in torch. What this module adds is the execution: the
+initialization window and the horizon as ``jax.lax.scan``, compiled once per batch size
+with ``jax.jit``, batched over candidate control plans and sharded over the cores.
 
-It does not restate the model: the physical part calls the very ``vessel_physics``
-force terms, mass matrix and RK4 step the simulator and the torch model use (they are
-written against the Array API), and the regression features come from the torch
-model's own ``FeatureMap``. What is written here is the standard LSTM cell (gate order
-i, f, g, o, as torch.nn.LSTM) and the data flow of ``HybridModel.step``; a test holds
-it equal to the torch model's forecast.
+The relative threshold is resolved once, here (meanings as in ``hybrid_models.bound``):
+None serves the checkpoint's own bound (the threshold it was trained or deployed with,
+``model.relative_threshold`` in its config); 0 serves the physics alone; T > 0 bounds
+the correction to T R / 2 with the checkpoint's output range R.
 
 XLA runs one program on one host core, and programs on the same device run one after
-the other. So that a batch of what-if plans uses every core, the engine asks XLA for
+the other. So that a batch of what-if plans uses every core, the forecaster asks XLA for
 one host device per core (``--xla_force_host_platform_device_count`` in ``XLA_FLAGS``,
 unless the user set it or jax was imported first) and splits batches of
 ``MIN_SHARD`` plans or more across the devices; a single forecast stays on one device.
@@ -32,7 +32,12 @@ import sys
 
 import numpy as np
 
-from hybrid_models.nets import HybridModel
+from hybrid_models.bound import half_width
+from hybrid_models.checkpoint_format import CheckpointError, read_model_arrays, vessel_of
+from hybrid_models.hybrid_step import hybrid_step, lstm_layers, lstm_stack, step_weights
+from hybrid_models.physical import PhysicalModel, build_physical
+from hybrid_models.physical.base import part
+from hybrid_models.vehicle import VehicleSpec
 
 
 @dataclass(frozen=True)
@@ -58,97 +63,92 @@ def _jax():
     return jax
 
 
-def _lstm_weights(lstm, dtype) -> list[tuple]:
-    """Per layer (W_ih^T, W_hh^T, b_ih + b_hh) of a torch.nn.LSTM, as arrays."""
-    layers = []
-    for k in range(lstm.num_layers):
-        w_ih = getattr(lstm, f'weight_ih_l{k}').detach().double().numpy().T
-        w_hh = getattr(lstm, f'weight_hh_l{k}').detach().double().numpy().T
-        bias = (getattr(lstm, f'bias_ih_l{k}') + getattr(lstm, f'bias_hh_l{k}'))
-        layers.append(tuple(np.asarray(a, dtype) for a in (w_ih, w_hh,
-                                                            bias.detach().double().numpy())))
-    return layers
+def _compiled_repeat(n, body, x):
+    """Apply ``body`` n times as one compiled loop (the physics' RK4 sub-steps)."""
+    return _jax().lax.fori_loop(0, n, lambda _i, state: body(state), x)
 
 
-def _physical_step(physical, dtype):
-    """Return f(z, c) -> z_phy for the model's physical part, in jax.numpy."""
-    from hybrid_models.physical.composite import CompositeModel
-    from hybrid_models.physical.regression import RegressionModel
-
-    if isinstance(physical, CompositeModel):
-        first = _physical_step(physical.first_principles, dtype)
-        second = _physical_step(physical.regression, dtype)
-        return lambda z, c: first(z, c) + second(z, c)
-    if isinstance(physical, RegressionModel):
-        weight = np.asarray(physical.weight.detach().double().numpy().T, dtype)
-        bias = np.asarray(physical.bias.detach().double().numpy(), dtype)
-        features = physical.features.array_features
-        return lambda z, c: features(z, c) @ weight + bias
-    from hybrid_models.physical.integrated import IntegratedModel
-
-    if isinstance(physical, IntegratedModel):
-        jax = _jax()
-
-        def repeat(n, body, x):
-            return jax.lax.fori_loop(0, n, lambda _i, state: body(state), x)
-
-        return lambda z, c: physical.array_step(z, c, repeat)
-    raise TypeError(f'no compiled form for physical model {type(physical).__name__}')
+def served_bound(state: dict, model_config: dict,
+                 relative_threshold: float | None) -> tuple[float | None, np.ndarray]:
+    """Return (threshold, half-widths b) to serve: None keeps the checkpoint's own."""
+    if relative_threshold is None:
+        return (model_config.get('relative_threshold'),
+                np.asarray(state['bound'], np.float64).copy())
+    out_range = np.asarray(state['output_range'], np.float64)
+    if not np.isfinite(out_range).all():
+        raise ValueError('the model has no output range (trained before bounds were '
+                         'computed); serve it with relative_threshold None')
+    return float(relative_threshold), half_width(relative_threshold, out_range)
 
 
-class ForecastEngine:
+class Forecaster:
     """
-    Batched, compiled forecasts of a trained ``HybridModel``.
+    Batched, compiled forecasts of a trained hybrid model.
 
     ``forecast(z_window, c_window, c_future)`` takes one initialization window
     (W, n_state) and (W, n_control) and B plans of future controls (B, H, n_control),
     indexed as in ``hybrid_models.data``: c_future[:, 0] is the control at the last
     window sample. Computation runs in ``dtype`` (float32 by default, as trained).
+    Build one with ``from_checkpoint`` (serving) or ``from_model`` (a torch model).
     """
 
-    def __init__(self, model: HybridModel, dtype=np.float32, model_id: str = '',
-                 config: dict | None = None):
-        if not isinstance(model, HybridModel):
-            raise TypeError(f'the engine runs hybrid models, got {type(model).__name__}')
+    def __init__(self, spec: VehicleSpec, model_config: dict, physical: PhysicalModel,
+                 state: dict, relative_threshold: float | None = None, dtype=np.float32,
+                 model_id: str = '', config: dict | None = None):
         jax = _jax()
         if dtype == np.float64:
             jax.config.update('jax_enable_x64', True)
-        self.model = model.eval()
-        self.spec = model.spec
-        self.dtype = dtype
-        self.model_id = model_id
-        self.config = dict(config or {})
-        self.bound = model.bound.detach().double().numpy().copy()
+        self.spec, self.physical, self.dtype = spec, physical, dtype
+        self.model_id, self.config = model_id, dict(config or {})
+        self.bound_mode = model_config.get('bound_mode', 'tanh')
+        self.relative_threshold, self.bound = served_bound(state, model_config,
+                                                           relative_threshold)
+        layers = int(model_config['layers'])
 
-        def buffer(name):
-            return np.asarray(getattr(model, name).detach().double().numpy(), dtype)
+        def cast(a):
+            a = np.asarray(a)
+            return a.astype(dtype) if np.issubdtype(a.dtype, np.floating) else a
 
-        self._params = {
-            'state_mean': buffer('state_mean'), 'state_std': buffer('state_std'),
-            'control_mean': buffer('control_mean'), 'control_std': buffer('control_std'),
-            'residual_std': buffer('residual_std'),
-            'bound': np.asarray(np.where(np.isfinite(self.bound), self.bound, 0.0), dtype),
-            'head_w': np.asarray(model.head.weight.detach().double().numpy().T, dtype),
-            'head_b': np.asarray(model.head.bias.detach().double().numpy(), dtype),
-            'init': _lstm_weights(model.init, dtype),
-            'lstm': _lstm_weights(model.lstm, dtype),
-        }
-        self._bounded = bool(np.isfinite(self.bound).any())
-        self._finite_bound = np.isfinite(self.bound)
-        self._mode = model.bound_mode
-        self._physical = _physical_step(model.physical, dtype)
+        arrays = {k: cast(v) for k, v in state.items()} | {'bound': cast(self.bound)}
+        self._params = {**step_weights(arrays, layers), 'init': lstm_layers(arrays, 'init',
+                                                                            layers),
+                        'physical': {k: cast(v) for k, v in physical.arrays().items()}}
         self._compiled = jax.jit(self._forecast)
         self.devices = jax.devices('cpu')
         self._device_params = [jax.device_put(self._params, d) for d in self.devices]
 
     @classmethod
-    def from_checkpoint(cls, path: str | Path, dtype=np.float32) -> ForecastEngine:
-        """Load a hybrid checkpoint (never unpickles) and build its engine."""
-        from hybrid_models.checkpoint import load_model
-
-        model, config = load_model(path)
+    def from_checkpoint(cls, path: str | Path, relative_threshold: float | None = None,
+                        dtype=np.float32) -> Forecaster:
+        """Serve a hybrid checkpoint (read without torch, never unpickled)."""
+        config, state = read_model_arrays(path)
         digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]
-        return cls(model, dtype, model_id=f'{Path(path).stem}@{digest}', config=config)
+        try:
+            return cls._build(vessel_of(config, path), config.get('model') or {}, state,
+                              relative_threshold, dtype, f'{Path(path).stem}@{digest}',
+                              config)
+        except (KeyError, TypeError) as exc:
+            raise CheckpointError(f'{path}: checkpoint does not match its model '
+                                  f'({type(exc).__name__}: {exc})') from None
+
+    @classmethod
+    def from_model(cls, model, relative_threshold: float | None = None, dtype=np.float32,
+                   model_id: str = '', config: dict | None = None) -> Forecaster:
+        """Serve a trained torch ``HybridModel`` (its weights are copied to numpy)."""
+        state = {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
+        return cls._build(model.spec, model.describe(), state, relative_threshold, dtype,
+                          model_id, config)
+
+    @classmethod
+    def _build(cls, spec, model_config: dict, state: dict, relative_threshold, dtype,
+               model_id: str, config: dict | None) -> Forecaster:
+        if model_config.get('kind') != 'hybrid':
+            raise CheckpointError(f"the forecaster serves hybrid models, not kind "
+                                  f"{model_config.get('kind')!r}")
+        physical = build_physical(model_config['physical'], spec)
+        physical.load_arrays(part(state, 'physical'))
+        return cls(spec, model_config, physical, state, relative_threshold, dtype, model_id,
+                   config)
 
     @property
     def window(self) -> int:
@@ -157,65 +157,34 @@ class ForecastEngine:
         return int(run_config['training']['window'])
 
     # ------------------------------------------------------------------ the program
-    @staticmethod
-    def _cell(x, h, c, weights):
-        jnp = _jax().numpy
-        w_ih, w_hh, bias = weights
-        gates = x @ w_ih + h @ w_hh + bias
-        i, f, g, o = jnp.split(gates, 4, axis=-1)
-        sig = _jax().nn.sigmoid
-        c = sig(f) * c + sig(i) * jnp.tanh(g)
-        return sig(o) * jnp.tanh(c), c
-
-    def _stack(self, x, hs, cs, layers):
-        new_h, new_c = [], []
-        for k, weights in enumerate(layers):
-            h, c = self._cell(x, hs[k], cs[k], weights)
-            new_h.append(h)
-            new_c.append(c)
-            x = h
-        return x, tuple(new_h), tuple(new_c)
-
-    def _bound(self, res, p):
-        jnp = _jax().numpy
-        if not self._bounded:
-            return res
-        b = jnp.where(self._finite_bound, p['bound'], 1.0)
-        if self._mode == 'tanh':
-            limited = b * jnp.tanh(res / b)
-        else:
-            limited = jnp.clip(res, -b, b)
-        return jnp.where(self._finite_bound, limited, res)
-
     def _forecast(self, p, z_window, c_window, c_future):
         jax = _jax()
         jnp = jax.numpy
         batch = c_future.shape[0]
-        nz = lambda z: (z - p['state_mean']) / p['state_std']  # noqa: E731
-        nc = lambda c: (c - p['control_mean']) / p['control_std']  # noqa: E731
         hidden = p['init'][0][1].shape[0]
         zeros = tuple(jnp.zeros((1, hidden), self.dtype) for _ in p['init'])
+        norm = jnp.concatenate([(z_window - p['state_mean']) / p['state_std'],
+                                (c_window - p['control_mean']) / p['control_std']], axis=-1)
 
-        def init_step(carry, x):
-            _, hs, cs = self._stack(x[None, :], carry[0], carry[1], p['init'])
-            return (hs, cs), None
+        def init_step(recurrent, x):
+            return lstm_stack(x[None, :], recurrent, p['init'])[1], None
 
-        window_in = jnp.concatenate([nz(z_window), nc(c_window)], axis=-1)
-        (hs, cs), _ = jax.lax.scan(init_step, (zeros, zeros), window_in)
-        hs = tuple(jnp.broadcast_to(h, (batch, hidden)) for h in hs)
-        cs = tuple(jnp.broadcast_to(c, (batch, hidden)) for c in cs)
+        (hs, cs), _ = jax.lax.scan(init_step, (zeros, zeros), norm)
+        recurrent = (tuple(jnp.broadcast_to(h, (batch, hidden)) for h in hs),
+                     tuple(jnp.broadcast_to(c, (batch, hidden)) for c in cs))
         z0 = jnp.broadcast_to(z_window[-1], (batch, z_window.shape[-1]))
 
-        def step(carry, c_t):
-            z, hs, cs = carry
-            z_phy = self._physical(z, c_t)
-            y, hs, cs = self._stack(jnp.concatenate([nc(c_t), nz(z_phy)], axis=-1), hs, cs,
-                                    p['lstm'])
-            res = self._bound((y @ p['head_w'] + p['head_b']) * p['residual_std'], p)
-            z_next = z_phy + res
-            return (z_next, hs, cs), (z_next, z_phy)
+        def physical(z, c):
+            return self.physical.step(z, c, p['physical'], _compiled_repeat)
 
-        _, (hybrid, physics) = jax.lax.scan(step, (z0, hs, cs), jnp.swapaxes(c_future, 0, 1))
+        def step(carry, c_t):
+            z, recurrent = carry
+            z_next, z_phy, _, recurrent = hybrid_step(p, physical, z, c_t, recurrent,
+                                                      self.bound_mode)
+            return (z_next, recurrent), (z_next, z_phy)
+
+        _, (hybrid, physics) = jax.lax.scan(step, (z0, recurrent),
+                                            jnp.swapaxes(c_future, 0, 1))
         return jnp.swapaxes(hybrid, 0, 1), jnp.swapaxes(physics, 0, 1)
 
     # ------------------------------------------------------------------ public API

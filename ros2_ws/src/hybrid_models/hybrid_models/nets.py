@@ -23,7 +23,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_models.bound import apply_bound, half_width
+from hybrid_models.bound import half_width
+from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weights
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import PhysicalModel
 from hybrid_models.vehicle import VehicleSpec
@@ -57,6 +58,58 @@ class _Normalized(nn.Module):
         """(h, c) of the initializer after the window, each (layers, B, hidden)."""
         _, hc = init(torch.cat([self.nz(z_window), self.nc(c_window)], dim=-1))
         return hc
+
+
+class PhysicalModule(nn.Module):
+    """
+    A physical model inside a torch model: its learned values as buffers.
+
+    The model itself is framework-free (``hybrid_models.physical``); this module keeps
+    its arrays as buffers named like them (``weight``, ``regression.weight``), so they
+    move with ``.to()``/``.double()`` and live in the hybrid's state dict, and runs the
+    model's one ``step`` on them.
+    """
+
+    def __init__(self, model: PhysicalModel):
+        super().__init__()
+        self.model = model
+        for name, value in model.arrays().items():
+            owner = self
+            *path, leaf = name.split('.')
+            for child in path:
+                if not hasattr(owner, child):
+                    owner.add_module(child, nn.Module())
+                owner = getattr(owner, child)
+            tensor = torch.as_tensor(value)
+            owner.register_buffer(leaf, tensor.float() if tensor.is_floating_point()
+                                  else tensor)
+        self.spec, self.kind = model.spec, model.kind
+
+    def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+        """Predict the next state with the buffers' values."""
+        return self.model.step(z, c, dict(self.named_buffers()))
+
+    def fit(self, z: np.ndarray, c: np.ndarray, z_next: np.ndarray) -> PhysicalModule:
+        """Fit the model (numpy, float64) and copy what it learned into the buffers."""
+        self.model.fit(z, c, z_next)
+        buffers = dict(self.named_buffers())
+        with torch.no_grad():
+            for name, value in self.model.arrays().items():
+                buffers[name].copy_(torch.as_tensor(value))
+        return self
+
+    def numpy_model(self) -> PhysicalModel:
+        """Return the framework-free model holding the buffers' current values."""
+        return self.model.load_arrays({k: v.detach().cpu().numpy()
+                                       for k, v in self.named_buffers()})
+
+    def predict(self, z: np.ndarray, c: np.ndarray) -> np.ndarray:
+        """One-step predictions for N rows (numpy, float64), with the buffers' values."""
+        return self.numpy_model().predict(z, c)
+
+    def describe(self) -> dict:
+        """Return the model's construction arguments."""
+        return self.model.describe()
 
 
 def _lstm(n_in: int, hidden: int, layers: int, dropout: float) -> nn.LSTM:
@@ -111,7 +164,7 @@ class HybridModel(_Normalized):
                  layers: int = 2, dropout: float = 0.25, bound_mode: str = 'tanh',
                  bound_in_training: bool = False):
         super().__init__(spec)
-        self.physical = physical
+        self.physical = PhysicalModule(physical)
         self.hidden, self.layers, self.dropout = hidden, layers, dropout
         self.bound_mode, self.bound_in_training = bound_mode, bool(bound_in_training)
         self.init = _lstm(spec.n_state + spec.n_control, hidden, layers, dropout)
@@ -124,36 +177,49 @@ class HybridModel(_Normalized):
         self.relative_threshold: float | None = None
 
     def set_threshold(self, relative_threshold: float | None) -> None:
-        """Constrain the residual to T * R / 2 per state (None: unconstrained)."""
+        """Constrain the residual to T R / 2 per state (None: unconstrained; 0: physics)."""
         if relative_threshold is not None and not torch.isfinite(self.output_range).all():
             raise ValueError('output_range is not set; compute it before a threshold')
         b = half_width(relative_threshold, self.output_range.double().numpy())
         self.bound.copy_(torch.as_tensor(b, dtype=self.bound.dtype))
         self.relative_threshold = relative_threshold
 
-    def residual(self, y: torch.Tensor) -> torch.Tensor:
-        """Head output -> residual in state units, bounded unless training unconstrained."""
-        res = self.head(y) * self.residual_std
-        if self.training and not self.bound_in_training:
-            return res
-        return apply_bound(res, self.bound, self.bound_mode)
+    def _bound_mode(self) -> str | None:
+        """Return the bound to apply now (None while training unconstrained)."""
+        return None if self.training and not self.bound_in_training else self.bound_mode
 
-    def step(self, z: torch.Tensor, c: torch.Tensor, hc):
-        """One sample period: returns (z_next, z_phy, residual, hc)."""
-        z_phy = self.physical(z, c)
-        x = torch.cat([self.nc(c), self.nz(z_phy)], dim=-1).unsqueeze(1)
-        y, hc = self.lstm(x, hc)
-        res = self.residual(y[:, 0])
-        return z_phy + res, z_phy, res, hc
+    def start(self, z_window: torch.Tensor, c_window: torch.Tensor) -> tuple:
+        """Return the predictor's recurrent state after the window: (h, c) per layer."""
+        h, c = self.initial_state(self.init, z_window, c_window)
+        return tuple(h.unbind(0)), tuple(c.unbind(0))
+
+    def step(self, z: torch.Tensor, c: torch.Tensor, recurrent: tuple,
+             weights: dict | None = None):
+        """One sample period (``hybrid_models.hybrid_step``): (z_next, z_phy, res, state)."""
+        weights = weights if weights is not None else self.step_weights()
+        return hybrid_step(weights, self.physical, z, c, recurrent, self._bound_mode(),
+                           self._between_layers())
+
+    def step_weights(self) -> dict:
+        """Return the step's weights as views of the parameters (gradients flow)."""
+        return step_weights(dict(self.named_parameters()) | dict(self.named_buffers()),
+                            self.layers)
+
+    def _between_layers(self):
+        # torch.nn.LSTM's dropout between stacked layers, which teacher forcing applies.
+        if not self.training or self.layers < 2 or self.lstm.dropout == 0:
+            return None
+        return lambda x: nn.functional.dropout(x, self.lstm.dropout, training=True)
 
     def forecast(self, z_window: torch.Tensor, c_window: torch.Tensor,
                  c_future: torch.Tensor, return_parts: bool = False):
         """Multistep prediction with feedback; ``return_parts`` adds (z_phy, residual)."""
-        hc = self.initial_state(self.init, z_window, c_window)
+        recurrent = self.start(z_window, c_window)
+        weights = self.step_weights()
         z = z_window[:, -1]
         zs, phys, ress = [], [], []
         for k in range(c_future.shape[1]):
-            z, z_phy, res, hc = self.step(z, c_future[:, k], hc)
+            z, z_phy, res, recurrent = self.step(z, c_future[:, k], recurrent, weights)
             zs.append(z)
             phys.append(z_phy)
             ress.append(res)
@@ -172,7 +238,7 @@ class HybridModel(_Normalized):
         """
         hc = self.initial_state(self.init, z_window, c_window)
         y, _ = self.lstm(torch.cat([self.nc(c_future), self.nz(z_phy)], dim=-1), hc)
-        return self.residual(y)
+        return bounded_residual(y, self.step_weights(), self._bound_mode())
 
     def describe(self) -> dict:
         """Architecture and constraint (``build_model`` input)."""

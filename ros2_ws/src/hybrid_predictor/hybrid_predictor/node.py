@@ -45,8 +45,8 @@ from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from hybrid_models.checkpoint import CheckpointError
-from hybrid_models.engine import ForecastEngine
+from hybrid_models.checkpoint_format import CheckpointError
+from hybrid_models.engine import Forecaster
 from hybrid_predictor.health import Health
 from hybrid_predictor.input_window import InputWindow, channel_reader
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
@@ -109,13 +109,8 @@ class PredictorNode(Node):
                                                                'predictor.yaml')))
         self.p = p
         path = Path(p['model_path']) if p['model_path'] else default_model_path()
-        self.engine = ForecastEngine.from_checkpoint(path)
-        model = self.engine.model
-        if p['relative_threshold'] > 0:
-            model.set_threshold(p['relative_threshold'])
-            self.engine = ForecastEngine(model, model_id=self.engine.model_id,
-                                         config=self.engine.config)
-        self.spec = model.spec
+        self.engine = Forecaster.from_checkpoint(path, p['relative_threshold'])
+        self.spec = self.engine.spec
         if p['vessel']:
             load_vessel(p['vessel']).check_compatible(self.spec, f'model {path}')
         self.topic_map = topic_map_for(self.spec)
@@ -145,7 +140,8 @@ class PredictorNode(Node):
         self.engine.warm_up(self.horizon, window=window, max_batch=p['max_plans'])
         self.get_logger().info(
             f'model {self.engine.model_id} ({path}); window {window}, horizon '
-            f'{self.horizon}, bound {np.round(self.engine.bound, 5).tolist()}; compiled in '
+            f'{self.horizon}, relative threshold {self.engine.relative_threshold}, bound '
+            f'{np.round(self.engine.bound, 5).tolist()}; compiled in '
             f'{time.perf_counter() - started:.1f} s')
 
         self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-import numpy as np
-import torch
+from collections.abc import Mapping
 
-from hybrid_models.physical.base import PhysicalModel
+import numpy as np
+
+from hybrid_models.physical.base import PhysicalModel, part
 from hybrid_models.physical.regression import RegressionModel
 
 
@@ -23,9 +24,26 @@ class CompositeModel(PhysicalModel):
         self.regression = regression
         self.kind = f'{first_principles.kind}+{regression.kind}'
 
-    def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+    PARTS = ('first_principles', 'regression')
+
+    def step(self, z, c, arrays: Mapping, repeat=None):
         """Sum of both components."""
-        return self.first_principles(z, c) + self.regression(z, c)
+        return (self.first_principles.step(z, c, part(arrays, 'first_principles'), repeat) +
+                self.regression.step(z, c, part(arrays, 'regression'), repeat))
+
+    def arrays(self) -> dict:
+        """Return both parts' learned values, named ``<part>.<name>``."""
+        return {f'{name}.{k}': v for name in self.PARTS
+                for k, v in getattr(self, name).arrays().items()}
+
+    def load_arrays(self, arrays: Mapping) -> CompositeModel:
+        """Set both parts' learned values (names as ``arrays()``)."""
+        unknown = [k for k in arrays if k.split('.', 1)[0] not in self.PARTS]
+        if unknown:
+            raise ValueError(f'{self.kind}: unknown learned values {unknown}')
+        for name in self.PARTS:
+            getattr(self, name).load_arrays(part(arrays, name))
+        return self
 
     def fit(self, z: np.ndarray, c: np.ndarray, z_next: np.ndarray) -> CompositeModel:
         """Fit the regression on the first-principles residual."""

@@ -16,13 +16,13 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from array_api_compat import array_namespace
-import torch
+import numpy as np
 
 from hybrid_models.vehicle import VehicleSpec
+from vessel_physics.arrays import namespace
 from vessel_physics.terms import HULL_TERMS, hull_terms
 
-Term = Callable[[dict], torch.Tensor]
+Term = Callable[[dict], object]   # state values by name -> one feature (an array)
 
 # The nonlinear hull-force terms of the 4-DOF patrol-vessel model, in the order of the
 # regression's columns (a checkpoint's weights follow it); formulas and spelling are
@@ -99,14 +99,14 @@ class FeatureMap:
         # Keep the canonical order of BLANKE_TERMS; every row keeps all linear terms.
         return tuple(linear + [t for t in self.terms if t in terms])
 
-    def mask_matrix(self) -> torch.Tensor:
+    def mask_matrix(self) -> np.ndarray:
         """Boolean (n_state, F): row i marks the features of state i."""
         rows = [[n in set(self.masks[s]) for n in self.names] for s in self.spec.state_names]
-        return torch.tensor(rows, dtype=torch.bool)
+        return np.array(rows, dtype=bool)
 
     def array_features(self, z, c):
         """Features (..., F) in the order of ``names``, on any Array API arrays."""
-        xp = array_namespace(z, c)
+        xp = namespace(z, c)
         linear = xp.concat([c, z], axis=-1)
         if self.kind == 'lin':
             return linear
@@ -115,7 +115,3 @@ class FeatureMap:
         s = {name: z[..., i] for i, name in enumerate(self.spec.state_names)}
         blanke = xp.stack(hull_terms(self.terms, s), axis=-1)
         return xp.concat([linear, blanke], axis=-1)
-
-    def __call__(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
-        """Features (B, F) in the order of ``names`` (torch tensors)."""
-        return self.array_features(z, c)

@@ -4,14 +4,13 @@ Physical models that integrate an equation of motion over one sample period.
 A subclass gives ``derivative(z, c)`` (the state's time derivative on Array API arrays);
 this base integrates it with classical RK4 sub-steps (``vessel_physics.integrator``),
 the control held over the period (zero-order hold). One integration serves the torch
-model (with autograd) and the compiled forecast engine (jax).
+model (with autograd) and the compiled forecaster (jax).
 """
 
 from __future__ import annotations
 
 from abc import ABCMeta, abstractmethod
-
-import torch
+from collections.abc import Mapping
 
 from hybrid_models.physical.base import PhysicalModel
 from hybrid_models.vehicle import VehicleSpec
@@ -31,13 +30,8 @@ class IntegratedModel(PhysicalModel, metaclass=ABCMeta):
     def derivative(self, z, c):
         """Return z' (..., n_state) in the vehicle's units per second."""
 
-    def array_step(self, z, c, repeat=None):
-        """
-        Return the state one sample period later, on any Array API arrays.
-
-        ``repeat(n, body, x)`` applies ``body`` n times; the default is a Python loop,
-        the engine passes a compiled loop.
-        """
+    def step(self, z, c, arrays: Mapping | None = None, repeat=None):
+        """Return the state one sample period later (nothing learned: ``arrays`` is empty)."""
         h = self.spec.dt / self.substeps
 
         def body(x):
@@ -48,7 +42,3 @@ class IntegratedModel(PhysicalModel, metaclass=ABCMeta):
         for _ in range(self.substeps):
             z = body(z)
         return z
-
-    def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
-        """State one sample period later."""
-        return self.array_step(z, c)

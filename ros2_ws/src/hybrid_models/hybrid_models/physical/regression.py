@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
-import torch
 
 from hybrid_models.physical.base import PhysicalModel
 from hybrid_models.physical.features import FeatureMap
@@ -42,38 +43,35 @@ class RegressionModel(PhysicalModel):
         self.ridge = float(ridge)
         self.features = FeatureMap(spec, features, masks)
         n_feat = len(self.features.names)
-        self.register_buffer('weight', torch.zeros(spec.n_state, n_feat))
-        self.register_buffer('bias', torch.zeros(spec.n_state))
-        self.register_buffer('fitted', torch.zeros((), dtype=torch.bool))
+        self._arrays = {'weight': np.zeros((spec.n_state, n_feat)),
+                        'bias': np.zeros(spec.n_state), 'fitted': np.zeros((), bool)}
 
-    def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
+    def step(self, z, c, arrays: Mapping, repeat=None):
         """W f(z, c) + b."""
-        return self.features(z, c) @ self.weight.T + self.bias
+        return self.features.array_features(z, c) @ arrays['weight'].T + arrays['bias']
 
     def fit(self, z: np.ndarray, c: np.ndarray, target: np.ndarray) -> RegressionModel:
         """Least squares on rows (z, c) -> target (N, n_state), each state on its mask."""
-        with torch.no_grad():
-            phi = self.features(torch.as_tensor(z, dtype=torch.float64),
-                                torch.as_tensor(c, dtype=torch.float64)).numpy()
-        mask = self.features.mask_matrix().numpy()
-        weight = np.zeros(self.weight.shape)
-        bias = np.zeros(self.bias.shape)
+        phi = self.features.array_features(np.asarray(z, np.float64),
+                                           np.asarray(c, np.float64))
+        mask = self.features.mask_matrix()
+        weight = np.zeros_like(self._arrays['weight'])
+        bias = np.zeros_like(self._arrays['bias'])
         for i in range(self.spec.n_state):
             cols = np.flatnonzero(mask[i])
             weight[i, cols], bias[i] = ridge_lstsq(phi[:, cols], target[:, i], self.ridge)
-        self.weight.copy_(torch.as_tensor(weight, dtype=self.weight.dtype))
-        self.bias.copy_(torch.as_tensor(bias, dtype=self.bias.dtype))
-        self.fitted.fill_(True)
+        self._arrays.update(weight=weight, bias=bias, fitted=np.ones((), bool))
         return self
 
     def coefficients(self) -> dict[str, dict[str, float]]:
         """Fitted coefficients by state and feature name (masked-out terms omitted)."""
         mask = self.features.mask_matrix()
+        weight, bias = self._arrays['weight'], self._arrays['bias']
         out = {}
         for i, state in enumerate(self.spec.state_names):
-            row = {n: float(self.weight[i, j]) for j, n in enumerate(self.features.names)
+            row = {n: float(weight[i, j]) for j, n in enumerate(self.features.names)
                    if mask[i, j]}
-            row['1'] = float(self.bias[i])
+            row['1'] = float(bias[i])
             out[state] = row
         return out
 

@@ -231,7 +231,7 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
     model.output_range.copy_(torch.as_tensor(r95))
     model.set_threshold(cfg['model']['relative_threshold'])
     one_step_rmse = np.sqrt(squares / residual.n)
-    info = {'physics': _physics_info(physical),
+    info = {'physics': _physics_info(physical.model),
             'bound': {'definition': 'b_i = T * R_i / 2, R_i = q97.5 - q2.5 of one-step '
                                     'physical outputs on train+val',
                       'output_range': r95.tolist(),

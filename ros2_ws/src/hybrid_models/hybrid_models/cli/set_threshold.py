@@ -1,0 +1,68 @@
+r"""
+Write the relative threshold a hybrid checkpoint is served with into the checkpoint.
+
+    set_threshold MODEL.safetensors 0.15              # in place
+    set_threshold MODEL.safetensors none --out B.safetensors
+
+T bounds the LSTM's correction to T R / 2 per state (R: the physical model's 95 %
+output range, stored in the checkpoint); 'none' leaves it unbounded and 0 keeps the
+physics alone (``hybrid_models.bound``). The predictor and
+``Forecaster.from_checkpoint`` serve this threshold unless told another; the weights
+are not touched (only the bound buffer and the config's threshold change).
+"""
+
+import argparse
+import math
+from pathlib import Path
+import sys
+
+from hybrid_models.checkpoint import CheckpointError, load_model, save_checkpoint
+
+
+def threshold(text: str) -> float | None:
+    """Parse 'none' or a number >= 0."""
+    if text.lower() == 'none':
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"expected a number >= 0 or 'none', got {text!r}") from None
+    if not value >= 0 or math.isinf(value):
+        raise argparse.ArgumentTypeError(f'the threshold must be finite and >= 0, got {text}')
+    return value
+
+
+def set_threshold(path: Path, relative_threshold: float | None, out: Path) -> dict:
+    """Rewrite ``path`` to ``out`` with the threshold; return its bound section."""
+    model, config = load_model(path)
+    if getattr(model, 'kind', None) != 'hybrid':
+        raise CheckpointError(f'{path}: only hybrid models have a bound (this is '
+                              f'{getattr(model, "kind", type(model).__name__)!r})')
+    model.set_threshold(relative_threshold)
+    bound = {**config.get('bound', {}), 'relative_threshold': relative_threshold,
+             'half_width': model.bound.tolist()}
+    save_checkpoint(out, model, {**config, 'model': model.describe(), 'bound': bound})
+    return bound
+
+
+def main(argv=None) -> int:
+    """Parse arguments and rewrite the checkpoint; return the exit code."""
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('checkpoint', type=Path, help='hybrid checkpoint (.safetensors)')
+    parser.add_argument('threshold', type=threshold, help="relative threshold T, or 'none'")
+    parser.add_argument('--out', type=Path, help='write here instead of in place')
+    args = parser.parse_args(argv)
+    try:
+        bound = set_threshold(args.checkpoint, args.threshold, args.out or args.checkpoint)
+    except (CheckpointError, FileNotFoundError, ValueError) as exc:
+        print(f'set_threshold: error: {exc}', file=sys.stderr)
+        return 2
+    print(f'set_threshold: {args.out or args.checkpoint}: relative threshold '
+          f'{args.threshold}, half-widths {[round(b, 6) for b in bound["half_width"]]}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
