@@ -152,7 +152,7 @@ def test_demo_launch_answers_the_cli_and_records_its_namespace(
                         'relative_threshold', '0.3'))
     assert refused.startswith('Setting parameter failed') and 'read-only' in refused, refused
     unset = said(ros2('param', 'get', *DIRECT, '/demo1/predictor', 'relative_threshold'))
-    assert unset.strip() == 'Parameter not set.', unset     # served: the checkpoint's own
+    assert unset.strip() == 'Parameter not set', unset      # served: the checkpoint's own
     names = ros2('param', 'list', *DIRECT, '/demo1/predictor')
     assert {'relative_threshold', 'use_sim_time'} <= set(names.stdout.split()), names.stdout
 
