@@ -23,7 +23,7 @@ from tqdm import tqdm
 
 from hybrid_models.checkpoint import CheckpointError, read_header
 from hybrid_models.cli.set_threshold import threshold as threshold_value
-from hybrid_models.data import forecast_windows, load_runs
+from hybrid_models.data import dataset_hash, forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import forecast_metrics
 from vessel_datasets.format import DatasetError, read_dataset
@@ -101,6 +101,12 @@ def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
         f'one every {metrics["stride"]} s of {metrics["test_runs"]} test runs, against the '
         'noise-free states, true future controls)',
         '',
+        f'Test runs from `{metrics["test_dataset"]["path"]}` (sha256 '
+        f'`{metrics["test_dataset"]["sha256"][:16]}`...)'
+        + ('.' if metrics['test_dataset']['sha256'] == data.get('sha256') else
+           ': not the dataset the model was trained on (same simulator settings and seed '
+           'give the same split; a changed simulator gives slightly different runs).'),
+        '',
         '| ' + ' | '.join(f'{s} [{u}]' for s, u in zip(states, units, strict=True))
         + ' | trajectory [m] |',
         '|' + '---|' * (len(states) + 1),
@@ -127,6 +133,7 @@ def main(argv=None) -> int:
         print(f'model_card: error: {exc}', file=sys.stderr)
         return 2
     metrics = evaluate(engine, dataset, args.horizon, args.stride)
+    metrics['test_dataset'] = {'path': str(args.dataset), 'sha256': dataset_hash(args.dataset)}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'MODEL_CARD.md').write_text(
         card_text(args.checkpoint, config, engine, metrics, dataset))
