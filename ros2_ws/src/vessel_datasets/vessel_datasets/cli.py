@@ -1,9 +1,10 @@
 """
 Command-line options every recording converter shares (bags and tables alike).
 
-``offline/bag_to_dataset.py`` and ``offline/table_to_dataset.py`` add these with
-``add_dataset_options`` and turn them into ``convert.Options`` with ``resolve_options``,
-so a flag means the same in both and its default is written once (config/convert.yaml).
+The ``bag_to_dataset`` and ``table_to_dataset`` programs (modules of this package, also
+offline/*.py) build their parsers with ``converter_parser`` (their inputs, then these
+options) and turn the flags into ``convert.Options`` with ``resolve_options``, so a flag
+means the same in both and its default is written once (config/convert.yaml).
 """
 
 from __future__ import annotations
@@ -12,6 +13,17 @@ import argparse
 
 from . import format as fmt
 from .convert import Options
+
+
+def converter_parser(description: str, inputs: str, metavar: str,
+                     inputs_help: str) -> tuple[argparse.ArgumentParser, Options]:
+    """Return a converter's parser (its inputs, then the shared options) and the defaults."""
+    defaults = Options.from_yaml()
+    parser = argparse.ArgumentParser(description=description,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument(inputs, nargs='+', metavar=metavar, help=inputs_help)
+    add_dataset_options(parser, defaults)
+    return parser, defaults
 
 
 def add_dataset_options(parser: argparse.ArgumentParser, defaults: Options) -> None:
