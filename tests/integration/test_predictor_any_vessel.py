@@ -26,8 +26,8 @@ def skiff_model(tmp_path_factory):
     """Return (vessel file, checkpoint) of a smoke-trained skiff hybrid."""
     from hybrid_models.training.config import load_config
     from hybrid_models.training.train import train
-    from offline import bag_to_dataset
     from tests.unit.test_any_vessel import RATE_HZ, VESSEL, simulate, write_bag
+    from vessel_datasets import bag_to_dataset
 
     root = tmp_path_factory.mktemp('skiff')
     vessel_file = root / 'skiff.yaml'

@@ -17,10 +17,11 @@ from rosbags.typesys import Stores, get_typestore
 import yaml
 
 from hybrid_models.checkpoint import load_model
+from hybrid_models.cli import evaluate
 from hybrid_models.physical import build_physical
 from hybrid_models.training.config import load_config
 from hybrid_models.training.train import train
-from offline import bag_to_dataset, evaluate
+from vessel_datasets import bag_to_dataset
 from vessel_datasets.format import read_dataset
 from vessel_description import load_vessel, parse_vessel
 from vessel_physics import frames

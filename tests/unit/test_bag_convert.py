@@ -15,9 +15,8 @@ import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-from offline import bag_to_dataset
+from vessel_datasets import bag_to_dataset, synthetic
 from vessel_datasets import format as fmt
-from vessel_datasets import synthetic
 from vessel_datasets.bag_source import find_bags, sha256
 from vessel_datasets.convert import Options, bag_to_runs, convert_bag
 from vessel_datasets.quantities import WGS84_A_M, WGS84_F

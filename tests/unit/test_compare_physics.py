@@ -1,14 +1,17 @@
-"""offline/simulate_scenario.py and offline/compare_physics.py end to end on tiny data."""
+"""offline/simulate_scenario.py and the compare_physics program end to end on tiny data."""
 
 import json
 import os
 from pathlib import Path
 import subprocess
 import sys
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import yaml
+
+from hybrid_models.cli import compare_physics
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
@@ -18,6 +21,16 @@ def run(script, *args):
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(p for p in sys.path if p))
     return subprocess.run([sys.executable, str(ROOT / 'offline' / script), *map(str, args)],
                           capture_output=True, text=True, env=env, timeout=600)
+
+
+def compare(capsys, *args):
+    """Run compare_physics in this process; return its exit code and output as run() does."""
+    try:
+        code = compare_physics.main([str(a) for a in args])
+    except SystemExit as exc:  # argparse's usage errors
+        code = exc.code
+    out, err = capsys.readouterr()
+    return SimpleNamespace(returncode=code, stdout=out, stderr=err)
 
 
 @pytest.fixture(scope='module')
@@ -37,12 +50,13 @@ def fouled(tmp_path_factory):
     return out
 
 
-def test_the_same_hybrid_on_better_physics(fouled):
+def test_the_same_hybrid_on_better_physics(fouled, capsys):
     out = fouled / 'results'
-    result = run('compare_physics.py', '--dataset', fouled / 'data', '--physics',
-                 f'nominal={fouled / "data" / "nominal_physics.yaml"}',
-                 f'augmented={fouled / "augmented.yaml"}', '--out', out, '--config', SMOKE,
-                 '--window', 20, '--horizon', 60, '--stride', 60, '--thresholds', 0.05, 0.5)
+    result = compare(capsys, '--dataset', fouled / 'data', '--physics',
+                     f'nominal={fouled / "data" / "nominal_physics.yaml"}',
+                     f'augmented={fouled / "augmented.yaml"}', '--out', out, '--config',
+                     SMOKE, '--window', 20, '--horizon', 60, '--stride', 60, '--thresholds',
+                     0.05, 0.5)
     assert result.returncode == 0, result.stderr[-3000:]
     assert 'augmented: threshold for the nominal accuracy' in result.stdout
     res = json.loads((out / 'results.json').read_text())
@@ -76,8 +90,8 @@ def test_the_same_hybrid_on_better_physics(fouled):
     (['--physics', 'only=x.yaml'], 2, 'at least two physics'),
     (['--physics', 'noequals', 'b=x.yaml'], 2, 'LABEL=FILE'),
 ])
-def test_bad_input_is_one_clear_line(tmp_path, args, code, words):
-    result = run('compare_physics.py', '--dataset', tmp_path, '--out', tmp_path / 'o', *args)
+def test_bad_input_is_one_clear_line(tmp_path, capsys, args, code, words):
+    result = compare(capsys, '--dataset', tmp_path, '--out', tmp_path / 'o', *args)
     assert result.returncode == code
     assert words in result.stderr
     assert 'Traceback' not in result.stderr

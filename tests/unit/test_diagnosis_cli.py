@@ -1,4 +1,4 @@
-"""offline/diagnose.py: usage, one-line errors and exit codes for bad input."""
+"""The diagnose program (vessel_diagnosis.cli): usage, one-line errors and exit codes."""
 
 import json
 
@@ -8,10 +8,10 @@ import pytest
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from offline import diagnose
 from vessel_datasets import synthetic
 from vessel_datasets.format import write_dataset
 from vessel_description import load_vessel
+from vessel_diagnosis import cli as diagnose
 
 SHIP = load_vessel('patrol_boat')
 

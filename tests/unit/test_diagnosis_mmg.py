@@ -18,9 +18,9 @@ import pandas as pd
 import pytest
 import yaml
 
-from offline import diagnose
 from vessel_datasets.format import read_dataset, write_dataset
 from vessel_description import load_vessel, parse_vessel
+from vessel_diagnosis import cli as diagnose
 from vessel_diagnosis import mmg_family
 from vessel_diagnosis.recordings import RecordingsError
 from vessel_diagnosis.scale import ScaleError

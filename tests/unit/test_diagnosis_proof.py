@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from offline import diagnose
+from vessel_diagnosis import cli as diagnose
 from vessel_diagnosis.scenarios import load_scenario, simulate_scenario
 
 ONE_STEP_GAIN = 0.5

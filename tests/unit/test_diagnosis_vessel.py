@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from offline import diagnose
 from vessel_datasets import synthetic
 from vessel_datasets.format import write_dataset
 from vessel_description import load_vessel
+from vessel_diagnosis import cli as diagnose
 from vessel_diagnosis.admissible import admissible
 from vessel_diagnosis.library import load_library
 from vessel_diagnosis.recordings import Run

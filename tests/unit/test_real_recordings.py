@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from offline import bag_to_dataset, table_to_dataset
+from vessel_datasets import bag_to_dataset, table_to_dataset
 from vessel_description import load_vessel
 
 REAL = Path(__file__).resolve().parents[2].parent / 'shared' / 'real'

@@ -16,9 +16,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from offline import table_to_dataset
 from vessel_datasets import format as fmt
-from vessel_datasets import map_checks
+from vessel_datasets import map_checks, table_to_dataset
 from vessel_datasets import table_source as tables
 from vessel_datasets.bag_source import sha256
 from vessel_description import parse_vessel

@@ -20,7 +20,11 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='Hybrid physics + LSTM models, baselines and training (no ROS).',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['train = hybrid_models.cli.train:main',
-                                     'evaluate = hybrid_models.cli.evaluate:main',
-                                     'set_threshold = hybrid_models.cli.set_threshold:main']},
+    entry_points={'console_scripts': [
+        'train = hybrid_models.cli.train:main',
+        'evaluate = hybrid_models.cli.evaluate:main',
+        'set_threshold = hybrid_models.cli.set_threshold:main',
+        'reproduce_table2 = hybrid_models.cli.reproduce_table2:main',
+        'compare_physics = hybrid_models.cli.compare_physics:main',
+    ]},
 )

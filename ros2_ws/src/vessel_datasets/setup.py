@@ -20,5 +20,9 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='Dataset format and rosbag2/MCAP conversion (no ROS).',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['simulate = vessel_datasets.simulate:main']},
+    entry_points={'console_scripts': [
+        'simulate = vessel_datasets.simulate:main',
+        'bag_to_dataset = vessel_datasets.bag_to_dataset:main',
+        'table_to_dataset = vessel_datasets.table_to_dataset:main',
+    ]},
 )

@@ -1,17 +1,34 @@
 """
 Command-line options every recording converter shares (bags and tables alike).
 
-``offline/bag_to_dataset.py`` and ``offline/table_to_dataset.py`` add these with
-``add_dataset_options`` and turn them into ``convert.Options`` with ``resolve_options``,
-so a flag means the same in both and its default is written once (config/convert.yaml).
+The ``bag_to_dataset`` and ``table_to_dataset`` programs (modules of this package, also
+offline/*.py) build their parsers with ``converter_parser`` (their inputs, then these
+options) and turn the flags into ``convert.Options`` with ``resolve_options``, so a flag
+means the same in both and its default is written once (config/convert.yaml).
 """
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Iterator
+from contextlib import contextmanager
+import sys
+
+from tqdm import tqdm
 
 from . import format as fmt
 from .convert import Options
+
+
+def converter_parser(description: str, inputs: str, metavar: str,
+                     inputs_help: str) -> tuple[argparse.ArgumentParser, Options]:
+    """Return a converter's parser (its inputs, then the shared options) and the defaults."""
+    defaults = Options.from_yaml()
+    parser = argparse.ArgumentParser(description=description,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument(inputs, nargs='+', metavar=metavar, help=inputs_help)
+    add_dataset_options(parser, defaults)
+    return parser, defaults
 
 
 def add_dataset_options(parser: argparse.ArgumentParser, defaults: Options) -> None:
@@ -58,3 +75,14 @@ def resolve_options(parser: argparse.ArgumentParser, args: argparse.Namespace,
     if not (opts.max_gap_s > 0 and opts.min_run_s >= 0):
         parser.error('--max-gap must be positive and --min-run not negative')
     return opts
+
+
+@contextmanager
+def reading_progress(quiet: bool, **bar_options) -> Iterator[tqdm]:
+    """Yield the 'reading' progress bar on stderr (a terminal only), closed however it ends."""
+    bar = tqdm(desc='reading', file=sys.stderr, disable=True if quiet else None,
+               mininterval=0.5, **bar_options)
+    try:
+        yield bar
+    finally:
+        bar.close()

@@ -1,1 +1,6 @@
-"""Command-line programs of the models layer: ``train`` and ``evaluate`` (also offline/*.py)."""
+"""
+Command-line programs of the models layer (console scripts; also offline/*.py).
+
+``train`` and ``evaluate`` one model; ``reproduce_table2`` and ``compare_physics`` run the
+studies of hybrid_models.studies.
+"""

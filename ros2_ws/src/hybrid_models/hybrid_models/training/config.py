@@ -13,7 +13,8 @@ from pathlib import Path
 
 import yaml
 
-from vessel_description.resources import read_yaml
+import hybrid_models
+from vessel_description.resources import data_dir, read_yaml
 
 DEFAULTS: dict = {
     'name': 'unnamed',
@@ -134,6 +135,11 @@ def fill_from_vessel(cfg: dict, vessel) -> dict:
     _, v['horizon'], _ = evaluation_protocol(vessel, t['window'], v['horizon'], 1)
     v['stride'] = int(v['stride'] if v['stride'] is not None else max(1, v['horizon'] // 3))
     return out
+
+
+def config_dir() -> Path:
+    """Return the package's config/ folder: the source tree's, else the installed share's."""
+    return data_dir('hybrid_models', hybrid_models.__file__, 'config')
 
 
 def load_config(path: str | Path, overrides: list[str] | None = None) -> dict:

@@ -1,0 +1,1 @@
+"""Studies over many trainings: their plans, claim checks and reports (Table 2, physics)."""

@@ -1,0 +1,39 @@
+"""Every offline/*.py entry point is also an installed program: `ros2 run PACKAGE NAME`."""
+
+from pathlib import Path
+import subprocess
+
+import pytest
+
+from .conftest import installed_executable
+
+REPO = Path(__file__).resolve().parents[2]
+
+# offline/NAME.py -> the package whose console script NAME it runs.
+PROGRAMS = {
+    'train': 'hybrid_models',
+    'evaluate': 'hybrid_models',
+    'reproduce_table2': 'hybrid_models',
+    'compare_physics': 'hybrid_models',
+    'set_threshold': 'hybrid_models',
+    'simulate': 'vessel_datasets',
+    'bag_to_dataset': 'vessel_datasets',
+    'table_to_dataset': 'vessel_datasets',
+    'diagnose': 'vessel_diagnosis',
+    'record': 'vessel_recorder',
+}
+
+
+@pytest.mark.parametrize('name', sorted(PROGRAMS))
+def test_installed_program_answers_help(name):
+    assert (REPO / 'offline' / f'{name}.py').is_file()
+    exe = installed_executable(PROGRAMS[name], name)
+    done = subprocess.run([str(exe), '--help'], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.startswith('usage:')
+
+
+def test_every_thin_entry_point_is_listed():
+    # An offline tool that imports a package's main is a program of that package.
+    thin = {p.stem for p in (REPO / 'offline').glob('*.py') if 'import main' in p.read_text()}
+    assert thin <= set(PROGRAMS)
