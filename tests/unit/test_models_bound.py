@@ -82,7 +82,7 @@ def test_bound_applies_in_training_only_when_asked():
 
 def test_threshold_needs_the_output_range():
     model = HybridModel(SHIP, build_physical({'kind': 'lin'}, SHIP), hidden=4)
-    with pytest.raises(ValueError, match='output_range'):
+    with pytest.raises(ValueError, match='output range is not set'):
         model.set_threshold(0.15)
 
 

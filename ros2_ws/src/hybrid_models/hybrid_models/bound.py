@@ -44,6 +44,9 @@ def half_width(relative_threshold: float | None, out_range: np.ndarray) -> np.nd
         return np.full(np.shape(out_range), math.inf)
     if not relative_threshold >= 0:
         raise ValueError(f'relative threshold must be >= 0 or None, got {relative_threshold}')
+    if not np.isfinite(out_range).all():
+        raise ValueError('the output range is not set (a model trained before bounds were '
+                         'computed); a threshold needs it')
     return relative_threshold * np.asarray(out_range, dtype=np.float64) / 2.0
 
 

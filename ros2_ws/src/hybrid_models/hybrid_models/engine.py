@@ -75,9 +75,6 @@ def served_bound(state: dict, model_config: dict,
         return (model_config.get('relative_threshold'),
                 np.asarray(state['bound'], np.float64).copy())
     out_range = np.asarray(state['output_range'], np.float64)
-    if not np.isfinite(out_range).all():
-        raise ValueError('the model has no output range (trained before bounds were '
-                         'computed); serve it with relative_threshold None')
     return float(relative_threshold), half_width(relative_threshold, out_range)
 
 

@@ -5,6 +5,8 @@ Both use ``torch.nn.LSTM`` (gate order i, f, g, o; ``batch_first``) and an
 initializer LSTM after Mohajerin & Waslander (2019): it reads the initialization
 window of normalized states and controls, and its final (h, c) of every layer is the
 predictor LSTM's initial state (same layers and hidden size, so no mapping is needed).
+The hybrid's fed-back steps run ``hybrid_models.hybrid_step`` on the same weights, the
+one step the compiled forecaster serves; teacher forcing keeps the fused LSTM call.
 
 Normalization (buffers, fitted on training data): x_n = (x - mean) / std for states
 and controls; the network's output y becomes a state (LSTM) or a residual (hybrid) as
@@ -178,8 +180,6 @@ class HybridModel(_Normalized):
 
     def set_threshold(self, relative_threshold: float | None) -> None:
         """Constrain the residual to T R / 2 per state (None: unconstrained; 0: physics)."""
-        if relative_threshold is not None and not torch.isfinite(self.output_range).all():
-            raise ValueError('output_range is not set; compute it before a threshold')
         b = half_width(relative_threshold, self.output_range.double().numpy())
         self.bound.copy_(torch.as_tensor(b, dtype=self.bound.dtype))
         self.relative_threshold = relative_threshold
