@@ -21,6 +21,7 @@ PROGRAMS = {
     'bag_to_dataset': 'vessel_datasets',
     'table_to_dataset': 'vessel_datasets',
     'diagnose': 'vessel_diagnosis',
+    'simulate_scenario': 'vessel_diagnosis',
     'record': 'vessel_recorder',
 }
 
