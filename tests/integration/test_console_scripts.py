@@ -23,6 +23,7 @@ PROGRAMS = {
     'diagnose': 'vessel_diagnosis',
     'simulate_scenario': 'vessel_diagnosis',
     'record': 'vessel_recorder',
+    'demo': 'vessel_bringup',
 }
 
 
