@@ -2,149 +2,17 @@
 """
 Write a model card for a hybrid checkpoint: what it is, what it learned from, how good.
 
-Evaluates the checkpoint with the compiled forecast engine (the code the predictor
-node runs) on the test split of a dataset: 900-step forecasts every STRIDE samples of
-every test run, against the noise-free states where the dataset has them. Writes
-MODEL_CARD.md and model_card.json.
+    python offline/model_card.py CHECKPOINT --dataset DIR --out DIR
 
-example (the embedded default model):
-  model_card.py MODELS/model.safetensors --dataset data/ship96 --out MODELS
-  with MODELS = ros2_ws/src/hybrid_predictor/models/default
+The ``model_card`` program of hybrid_models: evaluates the checkpoint with the compiled
+forecast engine on the test split of a dataset and writes MODEL_CARD.md and
+model_card.json (``--help`` for the options); ``ros2 run hybrid_models model_card`` is
+the same program installed.
 """
 
-import argparse
-import json
-from pathlib import Path
 import sys
-import time
 
-import numpy as np
-from tqdm import tqdm
-
-from hybrid_models.checkpoint import CheckpointError, read_header
-from hybrid_models.cli.set_threshold import threshold as threshold_value
-from hybrid_models.data import dataset_hash, forecast_windows, load_runs
-from hybrid_models.engine import Forecaster
-from hybrid_models.metrics import forecast_metrics
-from vessel_datasets.format import DatasetError, read_dataset
-
-
-def parse_args(argv=None):
-    """Parse the command line."""
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('checkpoint', type=Path, help='hybrid model checkpoint (.safetensors)')
-    parser.add_argument('--dataset', type=Path, required=True, help='dataset directory')
-    parser.add_argument('--threshold', type=threshold_value, default=None,
-                        help="relative threshold served (default: the checkpoint's own, "
-                             "which set_threshold writes; 0: physics alone; 'none': "
-                             'unbounded)')
-    parser.add_argument('--horizon', type=int, default=900, help='forecast steps (default 900)')
-    parser.add_argument('--stride', type=int, default=120,
-                        help='samples between forecasts in a test run (default 120)')
-    parser.add_argument('--out', type=Path, required=True, help='folder for the card')
-    return parser.parse_args(argv)
-
-
-def evaluate(engine: Forecaster, dataset, horizon: int, stride: int) -> dict:
-    """Forecast the test split with the engine; return metrics and the per-call latency."""
-    runs = load_runs(dataset, 'test', engine.spec)
-    windows = forecast_windows(runs, engine.window, horizon, stride, target='true')
-    predictions = np.empty(windows.z_target.shape)
-    seconds = []
-    for i in tqdm(range(len(windows)), desc='test forecasts', file=sys.stderr):
-        started = time.perf_counter()
-        predictions[i] = engine.forecast(windows.z_window[i], windows.c_window[i],
-                                         windows.c_future[i]).hybrid[0]
-        seconds.append(time.perf_counter() - started)
-    metrics = forecast_metrics(predictions, windows.z_target, engine.spec)
-    metrics['latency_ms_p50'] = float(np.median(seconds) * 1e3)
-    metrics['test_runs'] = len(runs)
-    metrics['stride'] = stride
-    return metrics
-
-
-def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
-              dataset) -> str:
-    """Return the Markdown card."""
-    run = config.get('training', {})
-    model = run.get('model', {})
-    data = config.get('dataset', {})
-    states = engine.spec.state_names
-    units = engine.spec.state_units
-    traj = metrics['trajectory']
-    provenance = dataset.manifest.get('provenance', {})
-    lines = [
-        f'# Model card: {config.get("name", path.stem)}',
-        '',
-        f'- **File**: `{path.name}` ({engine.model_id}), weights-only safetensors with a '
-        'JSON config; loads without unpickling.',
-        f'- **Model**: hybrid residual model (Baier et al.), physical part '
-        f'`{model.get("physical", {}).get("kind")}`, LSTM {model.get("layers")} x '
-        f'{model.get("hidden")} with an LSTM initializer over a {engine.window}-sample '
-        f'window; {config.get("parameters")} trained parameters.',
-        f'- **Constraint**: LSTM correction bounded to ± relative threshold x the physical '
-        f"model's 95 % output range / 2; the checkpoint serves threshold "
-        f'{engine.relative_threshold}, which gives bounds '
-        + ', '.join(f'{s} {b:.4g} {u}' for s, b, u in zip(states, engine.bound, units,
-                                                          strict=True)) + '.',
-        f'- **Training data**: `{data.get("path")}` (sha256 `{str(data.get("sha256"))[:16]}`'
-        f'...), {len(data.get("train_runs", []))} training runs; generated by '
-        f'`{" ".join(provenance.get("command", [])) or provenance.get("tool", "?")}`.',
-        f'- **Training**: {len(run.get("training", {}).get("phases", []))} phases '
-        f'({", ".join(p["kind"] for p in run.get("training", {}).get("phases", []))}), '
-        f'best epoch {config.get("best_epoch")} of {config.get("epochs")}, stopped by '
-        f'"{config.get("stop_reason")}", {config.get("train_seconds", 0) / 60:.1f} min on 2 '
-        'CPU cores.',
-        '',
-        f'## Test metrics ({metrics["n_forecasts"]} forecasts of {metrics["horizon"]} steps, '
-        f'one every {metrics["stride"]} s of {metrics["test_runs"]} test runs, against the '
-        'noise-free states, true future controls)',
-        '',
-        f'Test runs from `{metrics["test_dataset"]["path"]}` (sha256 '
-        f'`{metrics["test_dataset"]["sha256"][:16]}`...)'
-        + ('.' if metrics['test_dataset']['sha256'] == data.get('sha256') else
-           ': not the dataset the model was trained on (same simulator settings and seed '
-           'give the same split; a changed simulator gives slightly different runs).'),
-        '',
-        '| ' + ' | '.join(f'{s} [{u}]' for s, u in zip(states, units, strict=True))
-        + ' | trajectory [m] |',
-        '|' + '---|' * (len(states) + 1),
-        '| ' + ' | '.join(f'{metrics["rmse"][s]:.4g}' for s in states)
-        + f' | {traj["mean"]:.0f} ± {traj["ci95"]:.0f} |',
-        '',
-        f'Trajectory error: mean distance over the horizon with a 95 % CI over forecasts; '
-        f'{traj["final_mean"]:.0f} m after {metrics["horizon"]} steps. One forecast takes '
-        f'{metrics["latency_ms_p50"]:.1f} ms (p50, compiled engine, this machine).',
-        '',
-        'Regenerate with `python offline/model_card.py` (see its `--help`).',
-    ]
-    return '\n'.join(lines) + '\n'
-
-
-def main(argv=None) -> int:
-    """Evaluate and write the card; return the exit code."""
-    args = parse_args(argv)
-    try:
-        config = read_header(args.checkpoint)
-        engine = Forecaster.from_checkpoint(args.checkpoint, args.threshold)
-        dataset = read_dataset(args.dataset)
-    except (CheckpointError, DatasetError, FileNotFoundError, TypeError, ValueError) as exc:
-        print(f'model_card: error: {exc}', file=sys.stderr)
-        return 2
-    metrics = evaluate(engine, dataset, args.horizon, args.stride)
-    metrics['test_dataset'] = {'path': str(args.dataset), 'sha256': dataset_hash(args.dataset)}
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / 'MODEL_CARD.md').write_text(
-        card_text(args.checkpoint, config, engine, metrics, dataset))
-    (args.out / 'model_card.json').write_text(json.dumps(
-        {'checkpoint': args.checkpoint.name, 'model_id': engine.model_id,
-         'relative_threshold': engine.relative_threshold, 'bound': engine.bound.tolist(),
-         **metrics},
-        indent=2))
-    print(f'model_card: wrote {args.out / "MODEL_CARD.md"}')
-    return 0
-
+from hybrid_models.cli.model_card import main
 
 if __name__ == '__main__':
     sys.exit(main())

@@ -16,11 +16,14 @@ PROGRAMS = {
     'reproduce_table2': 'hybrid_models',
     'compare_physics': 'hybrid_models',
     'set_threshold': 'hybrid_models',
+    'model_card': 'hybrid_models',
     'simulate': 'vessel_datasets',
     'bag_to_dataset': 'vessel_datasets',
     'table_to_dataset': 'vessel_datasets',
     'diagnose': 'vessel_diagnosis',
+    'simulate_scenario': 'vessel_diagnosis',
     'record': 'vessel_recorder',
+    'demo': 'vessel_bringup',
 }
 
 

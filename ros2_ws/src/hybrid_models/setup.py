@@ -26,5 +26,6 @@ setup(
         'set_threshold = hybrid_models.cli.set_threshold:main',
         'reproduce_table2 = hybrid_models.cli.reproduce_table2:main',
         'compare_physics = hybrid_models.cli.compare_physics:main',
+        'model_card = hybrid_models.cli.model_card:main',
     ]},
 )

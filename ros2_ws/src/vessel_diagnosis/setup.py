@@ -21,5 +21,8 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='Diagnosis of simulation-to-reality mismatch: locate, name, model, show (no ROS).',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['diagnose = vessel_diagnosis.cli:main']},
+    entry_points={'console_scripts': [
+        'diagnose = vessel_diagnosis.cli:main',
+        'simulate_scenario = vessel_diagnosis.cli_scenario:main',
+    ]},
 )

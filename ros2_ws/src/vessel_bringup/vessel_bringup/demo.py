@@ -1,0 +1,297 @@
+"""
+Demo: the simulator and the predictor running together, forecasts checked against truth.
+
+Starts the installed ``ship_sim_node simulator`` (faster than real time) and
+``hybrid_predictor predictor`` (the embedded default model) as separate processes, as
+``ros2 run`` would, all on DDS confined to this machine. A client listens to the
+forecasts and to the simulator's noise-free state, lets forecasts mature (a 900-step
+forecast needs 15 simulated minutes of truth), then prints the forecast-against-truth
+RMSE per state and the trajectory error, and writes a PNG of one forecast against
+what happened. Every process it starts is stopped on exit, also on Ctrl-C.
+
+The client acts as a controller would: it steers the vessel through /vessel/cmd along a
+plan of shaft-speed and rudder set-points (made by the simulator's human-like operator
+model with a seed of its own) and publishes the same plan on /vessel/control_plan, so
+each forecast follows the controls that are actually applied, as in the paper's
+evaluation. With --no-plan the predictor assumes the latest controls hold instead.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+import numpy as np
+
+STATES = ('u', 'v', 'p', 'r', 'phi')
+UNITS = ('m/s', 'm/s', 'rad/s', 'rad/s', 'rad')
+START = 1_000_000.0   # stamp of simulated t = 0 (any fixed value; keeps stamps readable)
+
+
+def parse_args(argv=None):
+    """Parse the command line."""
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--minutes', type=float, default=22.0,
+                        help='simulated minutes to run (default 22; > 16 so forecasts mature)')
+    parser.add_argument('--speed-up', type=float, default=30.0,
+                        help='real-time factor of the simulator (default 30)')
+    parser.add_argument('--seed', type=int, default=11, help='simulation seed (default 11)')
+    parser.add_argument('--evaluate-every', type=int, default=20, metavar='S',
+                        help='evaluate one forecast every S simulated seconds (default 20)')
+    parser.add_argument('--no-plan', action='store_true',
+                        help='do not steer; forecasts assume the latest controls hold')
+    # Relative to the working directory: tools/with_env.sh runs from the repository root.
+    parser.add_argument('--out', type=Path, default=Path('out') / 'demo',
+                        help='folder for the PNG and JSON (default out/demo)')
+    args = parser.parse_args(argv)
+    if args.minutes <= 16 or not 0.01 <= args.speed_up <= 1000 or args.evaluate_every < 1:
+        parser.error('--minutes must exceed 16, --speed-up lie in [0.01, 1000], '
+                     '--evaluate-every be >= 1')
+    return args
+
+
+def executable(package: str, name: str) -> Path:
+    """Return where `ros2 run PACKAGE NAME` finds the executable, or exit with a hint."""
+    try:
+        prefix = get_package_prefix(package)
+    except PackageNotFoundError:
+        sys.exit(f'demo: error: package {package} is not installed; run `make setup` first')
+    path = Path(prefix) / 'lib' / package / name
+    if not path.is_file():
+        sys.exit(f'demo: error: {path} is missing; run `make setup` first')
+    return path
+
+
+def start(argv: list[str]) -> subprocess.Popen:
+    """Start a node in its own process group, its log lines shown on this terminal."""
+    return subprocess.Popen([str(a) for a in argv], start_new_session=True)
+
+
+def stop(process: subprocess.Popen) -> None:
+    """Stop a process group: SIGINT, then SIGKILL if it does not go."""
+    if process.poll() is None:
+        os.killpg(process.pid, signal.SIGINT)
+        try:
+            process.wait(10)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+
+
+def make_plan(seed: int, seconds: int) -> np.ndarray:
+    """Return set-points (seconds, 3): n (rad/s), delta_port, delta_stbd (rad) per second."""
+    from vessel_physics.config import load_config
+    from vessel_physics.operator import Operator
+
+    operator = Operator([np.random.default_rng(seed)], load_config().operator)
+    return np.array([np.concatenate(operator.setpoints(float(t))) for t in range(seconds)])
+
+
+def collect(seconds: float, speed_up: float, every: int, start_simulator,
+            plan: np.ndarray | None = None):
+    """
+    Wait for the predictor, start the simulator, listen until `seconds` of truth arrived.
+
+    With a ``plan`` the client steers the vessel along it and announces it to the
+    predictor. Returns (truth by simulated second, kept forecasts by their start second).
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from nav_msgs.msg import Odometry
+    import rclpy
+    from sensor_msgs.msg import JointState
+
+    from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
+    from vessel_ros_bridge import messages as m
+    from vessel_ros_bridge.names import DEFAULT_NAMESPACE
+
+    rclpy.init()
+    # In the nodes' namespace, so the shared relative topic names resolve as theirs do.
+    node = rclpy.create_node('demo_client', namespace=DEFAULT_NAMESPACE)
+    truth: dict[int, tuple] = {}
+    forecasts: dict[int, Forecast] = {}
+
+    command_pub = node.create_publisher(JointState, m.COMMAND_TOPIC, 10)
+    plan_pub = node.create_publisher(ControlPlan, 'control_plan', 10)
+
+    def on_truth(msg):
+        t = int(round(m.seconds_from_stamp(msg.header.stamp) - START))
+        if plan is not None and 0 <= t < len(plan):
+            # Set-points for the coming second; the simulator steps after this arrives.
+            command_pub.publish(m.joint_state_from_actuators(
+                dict(zip(('n', 'delta_port', 'delta_stbd'), plan[t], strict=True)),
+                msg.header.stamp))
+            if t % 10 == 0:
+                plan_pub.publish(plan_message)
+        state = m.state_from_odometry(msg)
+        truth[t] = (np.array([state[s] for s in STATES]), msg.pose.pose.position.x,
+                    msg.pose.pose.position.y)
+
+    next_kept = [0]
+
+    def on_forecast(msg):
+        # One forecast every `every` simulated seconds, whichever states the predictor
+        # forecast: at many times real time it skips states that waited as backlog, so
+        # a fixed grid of start times would miss most forecasts.
+        t = int(round(m.seconds_from_stamp(msg.header.stamp) - START))
+        if t >= next_kept[0]:
+            forecasts[t] = msg
+            next_kept[0] = t + every
+
+    if plan is not None:
+        plan_message = ControlPlan(shaft_speed=plan[:, 0].tolist(),
+                                   rudder_port=plan[:, 1].tolist(),
+                                   rudder_stbd=plan[:, 2].tolist())
+        plan_message.header.stamp = m.stamp_from_seconds(START)
+    node.create_subscription(Odometry, m.ODOM_TRUE_TOPIC, on_truth, 100)
+    node.create_subscription(Forecast, 'forecast', on_forecast, 10)
+    ready = []
+    node.create_subscription(DiagnosticArray, '/diagnostics', ready.append, 10)
+    deadline = time.monotonic() + 120.0
+    while not ready and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)   # the predictor compiles its model first
+    if not ready:
+        node.destroy_node()
+        rclpy.try_shutdown()
+        sys.exit('demo: error: the predictor did not come up within 120 s')
+    start_simulator()
+    deadline = time.monotonic() + 60.0 + 3.0 * seconds / speed_up
+    last_report = 0.0
+    try:
+        while time.monotonic() < deadline and len(truth) < seconds:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if time.monotonic() - last_report > 3.0:
+                print(f'  simulated {len(truth) / 60:5.1f} of {seconds / 60:.0f} min, '
+                      f'{len(forecasts)} forecasts kept', file=sys.stderr, flush=True)
+                last_report = time.monotonic()
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return truth, forecasts
+
+
+def evaluate(truth, forecasts):
+    """Compare every matured forecast with the truth; return the figures and the pairs."""
+    pairs = []
+    for t0, msg in sorted(forecasts.items()):
+        steps = range(t0 + 1, t0 + 1 + msg.horizon)
+        if not all(k in truth for k in steps):
+            continue   # not matured yet, or truth samples missing
+        predicted = np.reshape(msg.hybrid, (msg.horizon, len(STATES)))
+        actual = np.array([truth[k][0] for k in steps])
+        true_track = np.array([truth[k][1:] for k in steps])
+        track_error = np.hypot(np.asarray(msg.x) - true_track[:, 0],
+                               np.asarray(msg.y) - true_track[:, 1])
+        pairs.append((t0, msg, predicted, actual, track_error, true_track))
+    if not pairs:
+        return None, pairs
+    errors = np.stack([p[2] - p[3] for p in pairs])
+    rmse = np.sqrt(np.mean(errors ** 2, axis=(0, 1)))
+    track = np.stack([p[4] for p in pairs])
+    per_forecast = track.mean(axis=1)
+    figures = {
+        'forecasts_evaluated': len(pairs),
+        'horizon_steps': int(pairs[0][1].horizon),
+        'rmse': {s: float(v) for s, v in zip(STATES, rmse, strict=True)},
+        'trajectory_error_m': {
+            'mean': float(track.mean()),
+            'ci95': float(1.96 * per_forecast.std(ddof=1) / math.sqrt(len(pairs)))
+            if len(pairs) > 1 else None,
+            'at_5_min': float(track[:, 299].mean()),
+            'at_15_min': float(track[:, -1].mean()),
+        },
+        'model_id': pairs[0][1].model_id,
+    }
+    return figures, pairs
+
+
+def plot(pair, path: Path) -> None:
+    """Write a PNG of one forecast (hybrid and its physics part) against the truth."""
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    t0, msg, predicted, actual, _, true_track = pair
+    physics = np.reshape(msg.physics, predicted.shape)
+    bound = np.asarray(msg.residual_bound)
+    minutes = np.arange(1, msg.horizon + 1) / 60.0
+    fig = plt.figure(figsize=(13, 8), constrained_layout=True)
+    grid = fig.add_gridspec(len(STATES), 2)
+    for i, (state, unit) in enumerate(zip(STATES, UNITS, strict=True)):
+        ax = fig.add_subplot(grid[i, 1])
+        ax.plot(minutes, actual[:, i], 'k', lw=1, label='truth')
+        ax.plot(minutes, predicted[:, i], 'C1', lw=1, label='hybrid forecast')
+        ax.fill_between(minutes, physics[:, i] - bound[i], physics[:, i] + bound[i],
+                        color='C0', alpha=0.2, label='physics part ± LSTM bound')
+        ax.set_ylabel(f'{state} ({unit})')
+        if i == 0:
+            ax.legend(loc='upper right', fontsize=8)
+    ax.set_xlabel('minutes after the forecast was made')
+    track_ax = fig.add_subplot(grid[:, 0])
+    track_ax.plot(true_track[:, 0], true_track[:, 1], 'k', label='true track')
+    track_ax.plot(msg.x, msg.y, 'C1', label='forecast track')
+    track_ax.set(xlabel='east (m)', ylabel='north (m)', aspect='equal',
+                 title=f'forecast made at t = {t0} s, 15 min ahead')
+    track_ax.legend()
+    fig.suptitle(f'model {msg.model_id}')
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def main(argv=None) -> int:
+    """Run the demo; return the exit code."""
+    import json
+
+    args = parse_args(argv)
+    seconds = args.minutes * 60.0
+    print(f'demo: simulator at {args.speed_up:g}x real time with the predictor; '
+          f'{args.minutes:g} simulated minutes (about {seconds / args.speed_up:.0f} s)')
+    plan = None if args.no_plan else make_plan(args.seed + 1000, int(seconds) + 1000)
+    processes = [start([executable('hybrid_predictor', 'predictor'), '--ros-args',
+                        '-p', 'use_sim_time:=true', '-p', f'plan_timeout:={seconds + 60}'])]
+
+    def start_simulator():
+        processes.append(start([
+            executable('ship_sim_node', 'simulator'), '--ros-args', '-p', f'seed:={args.seed}',
+            '-p', f'real_time_factor:={args.speed_up}', '-p', 'publish_truth:=true',
+            '-p', f'start_time:={START}', '--log-level', 'warn']))
+
+    try:
+        truth, forecasts = collect(seconds, args.speed_up, args.evaluate_every,
+                                   start_simulator, plan)
+    finally:
+        for process in reversed(processes):
+            stop(process)
+    figures, pairs = evaluate(truth, forecasts)
+    if figures is None:
+        print(f'demo: error: no forecast matured ({len(forecasts)} forecasts, {len(truth)} s '
+              "of truth); see the nodes' output above", file=sys.stderr)
+        return 1
+    how = 'latest controls held' if plan is None else 'following the applied control plan'
+    print(f'demo: {figures["forecasts_evaluated"]} forecasts of {figures["horizon_steps"]} '
+          f'steps ({how}) against the simulator\'s truth (model {figures["model_id"]})')
+    for state, unit in zip(STATES, UNITS, strict=True):
+        print(f'  RMSE {state:>3}  {figures["rmse"][state]:.4f} {unit}')
+    traj = figures['trajectory_error_m']
+    ci = f' ± {traj["ci95"]:.0f}' if traj['ci95'] is not None else ''
+    print(f'  trajectory error  mean {traj["mean"]:.0f}{ci} m over 15 min '
+          f'({traj["at_5_min"]:.0f} m after 5 min, {traj["at_15_min"]:.0f} m after 15 min)')
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / 'demo.json').write_text(json.dumps(figures, indent=2))
+    png = args.out / 'forecast_vs_truth.png'
+    plot(pairs[len(pairs) // 2], png)
+    print(f'demo: wrote {png} and {args.out / "demo.json"}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
