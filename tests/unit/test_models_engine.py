@@ -172,6 +172,7 @@ TORCH_FREE_CHECK = """
 import json, sys
 import numpy as np
 import hybrid_predictor.node as node
+import hybrid_models.cli.model_card      # evaluates with the forecaster, torch-free too
 from hybrid_models.engine import Forecaster
 engine = Forecaster.from_checkpoint(node.default_model_path())
 w = engine.window

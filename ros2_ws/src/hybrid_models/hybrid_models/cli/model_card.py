@@ -20,8 +20,8 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from hybrid_models.checkpoint import CheckpointError, read_header
-from hybrid_models.cli.set_threshold import threshold as threshold_value
+from hybrid_models.checkpoint_format import CheckpointError, read_header
+from hybrid_models.cli.arguments import threshold as threshold_value
 from hybrid_models.data import dataset_hash, forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import forecast_metrics

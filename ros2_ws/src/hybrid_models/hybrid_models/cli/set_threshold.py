@@ -12,25 +12,11 @@ are not touched (only the bound buffer and the config's threshold change).
 """
 
 import argparse
-import math
 from pathlib import Path
 import sys
 
 from hybrid_models.checkpoint import CheckpointError, load_model, save_checkpoint
-
-
-def threshold(text: str) -> float | None:
-    """Parse 'none' or a number >= 0."""
-    if text.lower() == 'none':
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"expected a number >= 0 or 'none', got {text!r}") from None
-    if not value >= 0 or math.isinf(value):
-        raise argparse.ArgumentTypeError(f'the threshold must be finite and >= 0, got {text}')
-    return value
+from hybrid_models.cli.arguments import threshold
 
 
 def set_threshold(path: Path, relative_threshold: float | None, out: Path) -> dict:
