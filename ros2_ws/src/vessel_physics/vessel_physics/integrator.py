@@ -24,6 +24,26 @@ def rk4_step(f: Callable, t: float, x, dt: float):
     return x + (dt / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
 
 
+def held_period(derivative: Callable, z, c, period: float, substeps: int, repeat=None):
+    """
+    Advance ``z' = derivative(z, c)`` by one sample period (s) with the control c held.
+
+    Classical RK4 with ``substeps`` equal steps (zero-order hold). ``repeat(n, body, x)``
+    applies ``body`` n times; the default is a Python loop, a compiled program passes
+    its own loop.
+    """
+    h = period / substeps
+
+    def body(x):
+        return rk4_step(lambda _t, s: derivative(s, c), 0.0, x, h)
+
+    if repeat is not None:
+        return repeat(substeps, body, z)
+    for _ in range(substeps):
+        z = body(z)
+    return z
+
+
 def kinematics(u, v, r, phi, psi):
     """Return (x', y', psi') in NED (m/s, m/s, rad/s) for FRD u, v (m/s), r (rad/s), phi, psi."""
     xp = namespace(u, v, r, phi, psi)

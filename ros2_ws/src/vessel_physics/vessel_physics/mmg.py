@@ -38,7 +38,7 @@ from pathlib import Path
 from vessel_physics.arrays import namespace
 from vessel_physics.errors import ConfigError
 from vessel_physics.files import check_ranges, numeric_fields, read_yaml
-from vessel_physics.integrator import rk4_step
+from vessel_physics.integrator import held_period
 from vessel_physics.params import config_dir
 
 FORMAT = 'mmg-params/1'
@@ -390,13 +390,14 @@ def simulate(params: MmgParams, z0, controls, dt: float, substeps: int = 1,
     """
     xp = namespace(z0, controls)
     terms = tuple(terms)
-    h = dt / substeps
+
+    def rates(z, c):
+        return derivative(z, c, params, terms)
+
     z = z0
     out = [z]
     for k in range(controls.shape[-2]):
-        c = controls[..., k, :]
-        for _ in range(substeps):
-            z = rk4_step(lambda _t, s, c=c: derivative(s, c, params, terms), 0.0, z, h)
+        z = held_period(rates, z, controls[..., k, :], dt, substeps)
         out.append(z)
     return xp.stack(out, axis=-2)
 

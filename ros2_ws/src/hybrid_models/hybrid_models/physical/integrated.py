@@ -2,9 +2,10 @@
 Physical models that integrate an equation of motion over one sample period.
 
 A subclass gives ``derivative(z, c)`` (the state's time derivative on Array API arrays);
-this base integrates it with classical RK4 sub-steps (``vessel_physics.integrator``),
-the control held over the period (zero-order hold). One integration serves the torch
-model (with autograd) and the compiled forecaster (jax).
+this base integrates it over one sample period with ``vessel_physics.integrator.
+held_period`` (classical RK4 sub-steps, the control held), the integration the MMG
+simulation uses too. It serves the torch model (with autograd) and the compiled
+forecaster (jax).
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from collections.abc import Mapping
 
 from hybrid_models.physical.base import PhysicalModel
 from hybrid_models.vehicle import VehicleSpec
-from vessel_physics.integrator import rk4_step
+from vessel_physics.integrator import held_period
 
 
 class IntegratedModel(PhysicalModel, metaclass=ABCMeta):
@@ -32,13 +33,4 @@ class IntegratedModel(PhysicalModel, metaclass=ABCMeta):
 
     def step(self, z, c, arrays: Mapping | None = None, repeat=None):
         """Return the state one sample period later (nothing learned: ``arrays`` is empty)."""
-        h = self.spec.dt / self.substeps
-
-        def body(x):
-            return rk4_step(lambda _t, s: self.derivative(s, c), 0.0, x, h)
-
-        if repeat is not None:
-            return repeat(self.substeps, body, z)
-        for _ in range(self.substeps):
-            z = body(z)
-        return z
+        return held_period(self.derivative, z, c, self.spec.dt, self.substeps, repeat)
