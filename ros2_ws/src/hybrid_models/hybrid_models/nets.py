@@ -105,10 +105,6 @@ class PhysicalModule(nn.Module):
         return self.model.load_arrays({k: v.detach().cpu().numpy()
                                        for k, v in self.named_buffers()})
 
-    def predict(self, z: np.ndarray, c: np.ndarray) -> np.ndarray:
-        """One-step predictions for N rows (numpy, float64), with the buffers' values."""
-        return self.numpy_model().predict(z, c)
-
     def describe(self) -> dict:
         """Return the model's construction arguments."""
         return self.model.describe()

@@ -203,6 +203,8 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
     ns, nc = model.spec.n_state, model.spec.n_control
     pairs = stores['train'].pairs.rows()
     physical.fit(pairs[:, :ns], pairs[:, ns:ns + nc], pairs[:, ns + nc:])
+    # The fitted values as the hybrid holds them (its buffers), taken once for every run.
+    fitted = physical.numpy_model()
     residual = Moments(ns)
     squares = np.zeros(ns)
     outputs = RowSample(cfg['training']['statistics_rows'], cfg['training']['seed'])
@@ -215,7 +217,7 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
             prev = None
             for block in run.chunks():
                 rows = block if prev is None else np.concatenate([prev, block])
-                one_step = physical.predict(rows[:-1, :ns], rows[:-1, ns:ns + nc])
+                one_step = fitted.predict(rows[:-1, :ns], rows[:-1, ns:ns + nc])
                 writer.write(one_step)
                 # The 95 % range is taken over training AND validation outputs (paper).
                 outputs.add(one_step)
@@ -231,7 +233,7 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
     model.output_range.copy_(torch.as_tensor(r95))
     model.set_threshold(cfg['model']['relative_threshold'])
     one_step_rmse = np.sqrt(squares / residual.n)
-    info = {'physics': _physics_info(physical.model),
+    info = {'physics': _physics_info(fitted),
             'bound': {'definition': 'b_i = T * R_i / 2, R_i = q97.5 - q2.5 of one-step '
                                     'physical outputs on train+val',
                       'output_range': r95.tolist(),
