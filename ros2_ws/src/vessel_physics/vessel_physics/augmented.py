@@ -67,6 +67,7 @@ def term_function(name: str):
 ROLL_RATE = Z_COLUMNS.index('p')
 ALL_DOFS = ''.join(DOFS)   # an extra term acting on every DOF needs no mask
 
+
 @dataclass(frozen=True)
 class ExtraTerm:
     """``coefficient * term(z, c, params)`` on the DOFs ``dofs`` (a string like 'XYKN')."""

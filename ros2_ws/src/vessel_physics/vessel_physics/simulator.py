@@ -64,7 +64,9 @@ def _wrap(angle):
     """Wrap to (-pi, pi]."""
     return np.pi - np.mod(np.pi - angle, 2 * np.pi)
 
+
 WATER_TERMS = tuple(t for t in SIMULATOR_TERMS if t != 'wind')   # wind: scaled, below
+
 
 class Simulator:
     """Batch simulator; see the module docstring. All arrays are float64, SI units."""
