@@ -80,6 +80,10 @@ PLAN_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd', 'wind_speed', 'wind_
 # The controls a ControlPlan message gives (its fields are the patrol boat's).
 PLAN_CONTROLS = ('n', 'delta_port', 'delta_stbd', 'wind_speed', 'wind_dir_cos',
                  'wind_dir_sin')
+# Repeated warnings (rejected inputs, plans, withheld forecasts) are said once per this
+# many seconds each. Checked here: rclpy's own throttle costs about 0.3 ms a call, which
+# a burst of rejected messages pays for every message (measured).
+SAY_EVERY_S = 5.0
 
 
 def default_model_path() -> Path:
@@ -130,6 +134,7 @@ class PredictorNode(Node):
         self.batch_lock = threading.Lock()
         self.service_slots = threading.BoundedSemaphore(p['service_capacity'])
         self.input_event = threading.Event()
+        self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
                        0, 'clock_resets': 0, 'service_requests': 0, 'service_busy': 0,
                        'service_failed': 0}
@@ -229,7 +234,7 @@ class PredictorNode(Node):
         except (AttributeError, IndexError, TypeError, ValueError) as exc:
             with self.lock:
                 self.counts['malformed_inputs'] += 1
-            self.get_logger().warning(f'rejected {topic}: {exc}', throttle_duration_sec=5.0)
+            self._say('malformed', f'rejected {topic}: {exc}')
             return
         # Types without a header are timed on arrival, as offline conversion does.
         header = getattr(msg, 'header', None)
@@ -244,11 +249,20 @@ class PredictorNode(Node):
             if not reason:
                 self.health.record_input(now)
         if reason:
-            self.get_logger().warning(f'rejected input: {reason}', throttle_duration_sec=5.0)
+            self._say('rejected', f'rejected input: {reason}')
             return
         if topic == self.window.state_topic:
             self._on_state(t, info)
         self.input_event.set()
+
+    def _say(self, key: str, text: str, error: bool = False) -> None:
+        """Log ``text`` at most once per SAY_EVERY_S seconds per ``key``."""
+        now = time.monotonic()
+        if now - self._said.get(key, -math.inf) < SAY_EVERY_S:
+            return
+        self._said[key] = now
+        logger = self.get_logger()
+        (logger.error if error else logger.warning)(text)
 
     def _on_state(self, t: float, info) -> None:
         with self.lock:
@@ -264,16 +278,14 @@ class PredictorNode(Node):
 
     def _on_plan(self, msg: ControlPlan) -> None:
         if self.limits is None:
-            self.get_logger().warning(f'ignoring {PLAN_TOPIC}: {self._no_plans()}',
-                                      throttle_duration_sec=5.0)
+            self._say('no_plans', f'ignoring {PLAN_TOPIC}: {self._no_plans()}')
             return
         try:
             fields = check_plan(plan_fields(msg), self.horizon, self.limits, exact=False)
         except PlanError as exc:
             with self.lock:
                 self.counts['plans_rejected'] += 1
-            self.get_logger().warning(f'rejected {PLAN_TOPIC}: {exc}',
-                                      throttle_duration_sec=5.0)
+            self._say('plan_rejected', f'rejected {PLAN_TOPIC}: {exc}')
             return
         with self.lock:
             self.latest_plan = (messages.seconds_from_stamp(msg.header.stamp), fields)
@@ -336,9 +348,8 @@ class PredictorNode(Node):
                                           for f, v in fields.items()},
                                          result.controls[-1], self.horizon, self.limits)[None]
                 except PlanError as exc:
-                    self.get_logger().warning(f'ignoring {PLAN_TOPIC} from {age:.1f} s '
-                                              f'before the forecast: {exc}',
-                                              throttle_duration_sec=5.0)
+                    self._say('stale_plan', f'ignoring {PLAN_TOPIC} from {age:.1f} s '
+                                            f'before the forecast: {exc}')
         return hold_latest(result.controls[-1], self.horizon)
 
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
@@ -349,7 +360,7 @@ class PredictorNode(Node):
         if problem:
             with self.lock:
                 self.health.record_withheld(problem)
-            self.get_logger().error(f'forecast withheld: {problem}', throttle_duration_sec=5.0)
+            self._say('withheld', f'forecast withheld: {problem}', error=True)
             return
         self.forecast_pub.publish(msg)
         latency_ms = (time.time_ns() - received_ns) * 1e-6
