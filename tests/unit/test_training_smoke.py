@@ -30,7 +30,8 @@ def test_smoke_hybrid_trains_both_phases_within_a_minute(toy, tmp_path):
     assert config['dataset']['sha256'] and len(config['bound']['output_range']) == 5
     assert 'regression_coefficients' in config['physics']
     kinds = [line for line in (tmp_path / 'log.jsonl').read_text().splitlines()]
-    assert '"teacher"' in kinds[0] and '"multistep"' in kinds[-1]
+    assert '"reference"' in kinds[0] and '"teacher"' in kinds[1] and '"multistep"' in kinds[-1]
+    assert config['selection']['relative_threshold'] == config['model']['relative_threshold']
 
 
 @pytest.mark.parametrize('overrides', [

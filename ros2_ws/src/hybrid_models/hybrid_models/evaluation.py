@@ -73,16 +73,12 @@ def threshold_sweep(model: HybridModel, windows: Windows, spec: VehicleSpec,
 
     The threshold is applied at inference only; the model's own setting is restored.
     """
-    original = model.relative_threshold
     rows = []
-    try:
-        for t in [None] + list(thresholds):
-            model.set_threshold(t)
+    for t in [None] + list(thresholds):
+        with model.served_at(t):
             ev = evaluate_model(str(t), model, windows, spec, state_std)
             rows.append({'relative_threshold': t, **ev.metrics,
                          'bound': model.bound.tolist()})
-    finally:
-        model.set_threshold(original)
     return rows
 
 

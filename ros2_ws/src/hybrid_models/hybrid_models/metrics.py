@@ -17,15 +17,23 @@ The reported mean runs over all steps and forecasts; its 95 % confidence interva
 1.96 * std / sqrt(n) with std and n over the per-forecast mean errors (forecasts, not
 steps, are the sampling units; overlapping forecasts are still correlated, so read the
 interval as a lower bound on the uncertainty).
+
+Errors are also reported along the horizon, at every quarter of it (``reported_steps``):
+the mean position error and each state's RMSE over forecasts at those steps. Model
+cards show this profile, and the do-no-harm selection (``hybrid_models.selection``)
+compares a hybrid with its physics alone at the same steps.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from hybrid_models.vehicle import VehicleSpec
 
 Z95 = 1.959963984540054
+REPORTED_POINTS = 4   # the horizon profile reports errors at every quarter of the horizon
 
 
 def dead_reckoning(z: np.ndarray, spec: VehicleSpec) -> tuple[np.ndarray, np.ndarray]:
@@ -93,9 +101,76 @@ def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
             'per_minute_mean': None if per_minute is None else [
                 _finite(x) for x in per_minute.mean(axis=0)],
         },
+        'profile': StepErrors.of(pred, true, spec).profile(spec),
         'n_forecasts': n,
         'horizon': int(pred.shape[1]),
     }
+
+
+def reported_steps(horizon: int, points: int = REPORTED_POINTS) -> list[int]:
+    """Horizon steps (1 = the first predicted sample) at which errors are reported."""
+    return sorted({max(1, round(horizon * j / points)) for j in range(1, points + 1)})
+
+
+@dataclass
+class StepErrors:
+    """
+    Error sums per horizon step over a set of forecasts; sums of parts add up.
+
+    Forecasts split over chunks or processes give parts whose ``+`` is the whole, so
+    every profile and score below is exact whatever the split.
+    """
+
+    sse: np.ndarray        # (H, n_state) sums of squared state errors
+    position: np.ndarray   # (H,) sums of position errors (m)
+    count: int             # forecasts
+
+    @classmethod
+    def of(cls, pred: np.ndarray, true: np.ndarray, spec: VehicleSpec) -> StepErrors:
+        """Sum the errors of forecasts (B, H, n_state) against the truth."""
+        with np.errstate(invalid='ignore', over='ignore'):
+            sse = ((np.asarray(pred, np.float64) - true) ** 2).sum(axis=0)
+            position = trajectory_errors(np.asarray(pred, np.float64),
+                                         np.asarray(true, np.float64), spec).sum(axis=0)
+        return cls(sse, position, len(pred))
+
+    def __add__(self, other: StepErrors) -> StepErrors:
+        return StepErrors(self.sse + other.sse, self.position + other.position,
+                          self.count + other.count)
+
+    def flat(self) -> list[float]:
+        """Every sum as one list (to add parts over processes), then ``from_flat``."""
+        return [*self.sse.ravel().tolist(), *self.position.tolist(), float(self.count)]
+
+    @classmethod
+    def from_flat(cls, values, horizon: int, n_state: int) -> StepErrors:
+        """Rebuild from ``flat()`` output (of the same horizon and state count)."""
+        values = np.asarray(values, np.float64)
+        cut = horizon * n_state
+        return cls(values[:cut].reshape(horizon, n_state), values[cut:cut + horizon],
+                   int(round(values[-1])))
+
+    def score(self, state_std: np.ndarray) -> float:
+        """Sum over states of RMSE / std over every step (the model-selection score)."""
+        return normalized_rmse_sum_of(self.sse.sum(axis=0), self.count * len(self.sse),
+                                      state_std)
+
+    def profile(self, spec: VehicleSpec, steps: list[int] | None = None) -> dict:
+        """
+        Return the errors at ``steps`` (default ``reported_steps``).
+
+        The mean position error (m) and each state's RMSE over the forecasts; None
+        where a forecast diverged.
+        """
+        steps = steps or reported_steps(len(self.sse))
+        at = np.asarray(steps) - 1
+        with np.errstate(invalid='ignore', over='ignore'):
+            rmse = np.sqrt(self.sse[at] / self.count)
+            position = self.position[at] / self.count
+        return {'steps': list(steps), 'seconds': [k * spec.dt for k in steps],
+                'position_m': [_finite(x) for x in position],
+                'rmse': {s: [_finite(x) for x in rmse[:, i]]
+                         for i, s in enumerate(spec.state_names)}}
 
 
 def squared_error_sums(pred: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, int]:

@@ -27,7 +27,9 @@ def build_model(cfg: dict, spec: VehicleSpec) -> nn.Module:
         model = HybridModel(spec, build_physical(cfg['physical'], spec),
                             int(cfg.get('hidden', 64)), int(cfg.get('layers', 2)),
                             float(cfg.get('dropout', 0.25)), cfg.get('bound_mode', 'tanh'),
-                            bool(cfg.get('bound_in_training', False)))
+                            bool(cfg.get('bound_in_training', False)),
+                            # Checkpoints older than the key were trained from torch's init.
+                            cfg.get('correction_init', 'random'))
         model.relative_threshold = cfg.get('relative_threshold')
         return model
     raise ValueError(f'unknown model kind {kind!r}; use one of {MODEL_KINDS}')

@@ -19,6 +19,7 @@ returning the states z[t0:t0+H] (B, H, n_state) in physical units.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 import math
 
 import numpy as np
@@ -30,6 +31,8 @@ from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weight
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import PhysicalModel
 from hybrid_models.vehicle import VehicleSpec
+
+CORRECTION_INITS = ('zero', 'random')
 
 
 class _Normalized(nn.Module):
@@ -154,20 +157,31 @@ class HybridModel(_Normalized):
     (c_t, z_phy) and its linear head gives the residual; the residual is limited to
     [-b, b] per state (``hybrid_models.bound``) and added. During multistep
     prediction the sum is fed back as the next z_t.
+
+    ``correction_init`` 'zero' (the default) starts the head at exactly zero, so an
+    untrained hybrid forecasts what its physics does and training moves away from the
+    physics only as far as the data asks; 'random' keeps torch's initialization.
     """
 
     kind = 'hybrid'
 
     def __init__(self, spec: VehicleSpec, physical: PhysicalModel, hidden: int = 64,
                  layers: int = 2, dropout: float = 0.25, bound_mode: str = 'tanh',
-                 bound_in_training: bool = False):
+                 bound_in_training: bool = False, correction_init: str = 'zero'):
         super().__init__(spec)
+        if correction_init not in CORRECTION_INITS:
+            raise ValueError(f'correction_init must be one of {CORRECTION_INITS}, got '
+                             f'{correction_init!r}')
         self.physical = PhysicalModule(physical)
         self.hidden, self.layers, self.dropout = hidden, layers, dropout
         self.bound_mode, self.bound_in_training = bound_mode, bool(bound_in_training)
         self.init = _lstm(spec.n_state + spec.n_control, hidden, layers, dropout)
         self.lstm = _lstm(spec.n_control + spec.n_state, hidden, layers, dropout)
         self.head = nn.Linear(hidden, spec.n_state)
+        self.correction_init = correction_init
+        if correction_init == 'zero':
+            nn.init.zeros_(self.head.weight)
+            nn.init.zeros_(self.head.bias)
         self.register_buffer('residual_std', torch.ones(spec.n_state))
         # The physical model's 95 % output range R_i and the bound b_i = T R_i / 2.
         self.register_buffer('output_range', torch.full((spec.n_state,), math.nan))
@@ -179,6 +193,16 @@ class HybridModel(_Normalized):
         b = half_width(relative_threshold, self.output_range.double().numpy())
         self.bound.copy_(torch.as_tensor(b, dtype=self.bound.dtype))
         self.relative_threshold = relative_threshold
+
+    @contextmanager
+    def served_at(self, relative_threshold: float | None):
+        """Serve at another threshold inside the ``with`` block; the own one after it."""
+        own = self.relative_threshold
+        self.set_threshold(relative_threshold)
+        try:
+            yield self
+        finally:
+            self.set_threshold(own)
 
     def _bound_mode(self) -> str | None:
         """Return the bound to apply now (None while training unconstrained)."""
@@ -241,6 +265,7 @@ class HybridModel(_Normalized):
         return {'kind': self.kind, 'hidden': self.hidden, 'layers': self.layers,
                 'dropout': self.dropout, 'physical': self.physical.describe(),
                 'bound_mode': self.bound_mode, 'bound_in_training': self.bound_in_training,
+                'correction_init': self.correction_init,
                 'relative_threshold': self.relative_threshold}
 
 

@@ -5,6 +5,10 @@ Five states and six controls with the ship's names and roughly its magnitudes: s
 follows shaft speed, the rudders turn and sway the hull, roll is a lightly damped
 oscillator excited by sway and a sinusoidal "wave". It exists so that the learning
 layer can be exercised in seconds without the vessel simulator.
+
+``write_linear_dataset`` is its opposite: states that follow a linear map of state and
+control exactly, without noise, so the Lin physics explains them and nothing is left
+for a learned correction (the do-no-harm tests).
 """
 
 from __future__ import annotations
@@ -86,4 +90,29 @@ def write_toy_dataset(out_dir: str | Path, n_runs: int = 10, n_samples: int = 60
     runs = {f'toy_{i:03d}': simulate_toy_run(rng, n_samples) for i in range(n_runs)}
     write_dataset(out_dir, runs, vessel=TOY_VESSEL, seed=seed,
                   provenance={'tool': 'hybrid_models.toy', 'seed': seed})
+    return Path(out_dir)
+
+
+def write_linear_dataset(out_dir: str | Path, n_runs: int = 8, n_samples: int = 300,
+                         seed: int = 0) -> Path:
+    """Write runs of z_{t+1} = A z_t + B c_t + d (noise-free; the toy's controls)."""
+    rng = np.random.default_rng(seed)
+    n_state, n_control = TOY_VESSEL.n_state, TOY_VESSEL.n_control
+    a = np.diag([0.9, 0.8, 0.7, 0.85, 0.95]) + 0.02 * rng.standard_normal((n_state,) * 2)
+    b = 0.01 * rng.standard_normal((n_state, n_control))
+    d = 0.01 * rng.standard_normal(n_state)
+    runs = {}
+    for i in range(n_runs):
+        c = _controls(rng, n_samples)
+        z = np.zeros((n_samples, n_state))
+        z[0] = 0.1 * rng.standard_normal(n_state)
+        for t in range(n_samples - 1):
+            z[t + 1] = a @ z[t] + b @ c[t] + d
+        table = {'t': np.arange(n_samples, dtype=float), 'psi': np.cumsum(z[:, 3]),
+                 'x': np.cumsum(z[:, 0]), 'y': np.cumsum(z[:, 1])}
+        table.update({name: z[:, j] for j, name in enumerate(TOY_VESSEL.state_names)})
+        table.update({name: c[:, j] for j, name in enumerate(TOY_VESSEL.control_names)})
+        runs[f'linear_{i:03d}'] = pd.DataFrame(table)
+    write_dataset(out_dir, runs, vessel=TOY_VESSEL, seed=seed,
+                  provenance={'tool': 'hybrid_models.toy.write_linear_dataset', 'seed': seed})
     return Path(out_dir)

@@ -31,7 +31,11 @@ DEFAULTS: dict = {
         'physical': {'kind': 'lin'},
         'bound_mode': 'tanh',   # tanh | clamp (hybrid.bound)
         'bound_in_training': False,
-        'relative_threshold': None,   # e.g. 0.15; None: unconstrained
+        'correction_init': 'zero',   # zero: training starts from the physics' forecast;
+                                     # random: torch's default initialization of the head
+        'relative_threshold': None,   # the largest threshold served, e.g. 0.15 (None: no
+                                      # cap); the served one is chosen on validation
+                                      # (training.selection)
         'lags': [1, 2, 4, 8],   # QLag: candidate lags, chosen on validation
         'lag': 4,
         'ridge': 1.0e-8,
@@ -62,6 +66,13 @@ DEFAULTS: dict = {
                                        # the physics fit and the 95 % range: all of
                                        # them up to this many, else a uniform sample
         'progress': True,
+        # Do no harm (hybrid_models.selection): after training, the served relative
+        # threshold is chosen on the validation runs among these (0, the physics alone,
+        # always included; none above model.relative_threshold when that is set; null:
+        # unbounded) as the best one not worse than the physics alone at any reported
+        # step. false: serve model.relative_threshold as configured.
+        'selection': {'do_no_harm': True,
+                      'thresholds': [0.0, 0.01, 0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0]},
     },
     # None: the vessel's horizon; stride horizon/7.5 (120 s of the paper's 900 s)
     'evaluation': {'horizon': None, 'stride': None, 'target': 'true',

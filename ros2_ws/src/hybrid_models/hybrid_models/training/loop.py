@@ -5,6 +5,8 @@ One epoch = one pass over tiling training sequences (``hybrid_models.data``), th
 validation forecast. After every epoch ``last.safetensors`` (model, optimizer and this
 loop's state) is written atomically, and ``best.safetensors`` whenever the validation
 multistep score improves, so a killed run resumes losing at most the epoch in flight.
+Where the task has a reference (a hybrid's physics alone), it is epoch -1: the best
+until an epoch forecasts the validation runs better.
 Each epoch reseeds torch and numpy from (seed, epoch), which makes a resumed run
 repeat exactly what the uninterrupted one would have done.
 
@@ -35,6 +37,7 @@ from hybrid_models.checkpoint import load_checkpoint, restore_optimizer, save_ch
 from hybrid_models.training.distributed import Group, Shard
 
 LAST, BEST, LOG = 'last.safetensors', 'best.safetensors', 'log.jsonl'
+REFERENCE_EPOCH = -1   # the task's reference (a hybrid's physics alone) as an epoch
 # Improvements smaller than this fraction do not reset the patience counter.
 MIN_REL_IMPROVEMENT = 1e-3
 
@@ -77,6 +80,15 @@ class Task:
     def validate(self, model: nn.Module, phase: dict) -> dict:
         """Return validation figures: ``score`` (multistep) and optionally ``teacher``."""
         raise NotImplementedError
+
+    def reference(self, model: nn.Module) -> dict | None:
+        """
+        Return the validation ``score`` an epoch must beat to be the best (None: none).
+
+        A hybrid's is its physics alone: epoch -1, which the untrained model is when
+        its correction starts at zero.
+        """
+        return None
 
 
 def _json_safe(x: float) -> float | None:
@@ -134,10 +146,12 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
         if group.main:
             _truncate_log(out_dir / LOG, state.epoch)
             print(f'resuming at epoch {state.epoch} (phase {state.phase})', file=sys.stderr)
-    elif group.main:
-        # A fresh run must not inherit a previous run's log or best model.
-        for stale in (LOG, BEST):
-            (out_dir / stale).unlink(missing_ok=True)
+    else:
+        if group.main:
+            # A fresh run must not inherit a previous run's log or best model.
+            for stale in (LOG, BEST):
+                (out_dir / stale).unlink(missing_ok=True)
+        _start_from_reference(model, task, state, out_dir, checkpoint_config, group)
     limit = cfg.get('time_limit_minutes')
     while not state.finished and state.phase < len(phases):
         phase = phases[state.phase]
@@ -203,6 +217,23 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
               f"val {val['score']:.4g} best {state.best_score:.4g}"
               + (' (rolled back)' if rolled_back else ''), file=sys.stderr)
     return state
+
+
+def _start_from_reference(model, task, state, out_dir, checkpoint_config, group) -> None:
+    """Make the task's reference (a hybrid's physics alone) epoch -1, the best so far."""
+    reference = task.reference(model)
+    if reference is None:
+        return
+    state.best_score, state.best_epoch = reference['score'], REFERENCE_EPOCH
+    if not group.main:
+        return
+    save_checkpoint(out_dir / BEST, model, {**checkpoint_config(), 'val': reference,
+                                            'epoch': REFERENCE_EPOCH})
+    with open(out_dir / LOG, 'a') as f:
+        f.write(json.dumps({'epoch': REFERENCE_EPOCH, 'phase_kind': 'reference',
+                            'val_score': _json_safe(reference['score'])}) + '\n')
+    print(f"epoch {REFERENCE_EPOCH:3d} reference val {reference['score']:.4g} "
+          f"(the physics alone)", file=sys.stderr)
 
 
 def _optimizer(model: nn.Module, phase: dict, cfg: dict, state: LoopState):

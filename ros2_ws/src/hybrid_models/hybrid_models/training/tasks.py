@@ -9,14 +9,17 @@ feeds the model's own predictions back over ``sequence_length`` samples.
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import torch
 from torch import nn
 
 from hybrid_models.data import forecast_starts, gather_windows, tiling_starts, window_index
-from hybrid_models.metrics import normalized_rmse_sum_of, squared_error_sums
+from hybrid_models.metrics import StepErrors
 from hybrid_models.models import predict
 from hybrid_models.nets import as_tensor
+from hybrid_models.selection import PHYSICS_ALONE
 from hybrid_models.training.distributed import Group, Shard
 from hybrid_models.training.loop import Task
 
@@ -48,9 +51,9 @@ class RecurrentTask(Task):
     ranks of ``group`` and their error sums added up.
     """
 
-    def __init__(self, train: list, val: list, cfg: dict, state_std: np.ndarray,
+    def __init__(self, spec, train: list, val: list, cfg: dict, state_std: np.ndarray,
                  z_phy_train=None, z_phy_val=None, group: Group | None = None):
-        self.train, self.val, self.cfg = train, val, cfg
+        self.spec, self.train, self.val, self.cfg = spec, train, val, cfg
         self.group = group or Group()
         self.device = self.group.device
         self.state_std = as_tensor(state_std, self.device)
@@ -104,20 +107,37 @@ class RecurrentTask(Task):
             yield run_index[at], t0[at]
 
     @torch.no_grad()
+    def validation_errors(self, model: nn.Module) -> StepErrors:
+        """Error sums per horizon step of the validation forecasts, over every rank."""
+        horizon = self.cfg['validation']['horizon']
+        errors = StepErrors(np.zeros((horizon, self.spec.n_state)), np.zeros(horizon), 0)
+        for ri, t0 in self._my_chunks(*self.val_index):
+            w = gather_windows(self.val, ri, t0, self.cfg['window'], horizon)
+            errors = errors + StepErrors.of(predict(model, w), w.z_target, self.spec)
+        return StepErrors.from_flat(self.group.sum(errors.flat()), horizon,
+                                    self.spec.n_state)
+
+    def alone(self) -> RecurrentTask:
+        """Return this task for this process alone: every validation window, no rank sums."""
+        alone = copy.copy(self)
+        alone.group = Group(device=self.group.device)
+        return alone
+
     def validate(self, model: nn.Module, phase: dict) -> dict:
         """Multistep score (sum of per-state RMSE / std) and, in phase 1, teacher loss."""
-        v = self.cfg['validation']
-        sse, count = np.zeros(len(self.state_std_np)), 0
-        for ri, t0 in self._my_chunks(*self.val_index):
-            w = gather_windows(self.val, ri, t0, self.cfg['window'], v['horizon'])
-            part, n = squared_error_sums(predict(model, w), w.z_target)
-            sse, count = sse + part, count + n
-        *sse, count = self.group.sum([*sse, count])
-        out = {'score': normalized_rmse_sum_of(np.array(sse), count, self.state_std_np)}
+        out = {'score': self.validation_errors(model).score(self.state_std_np)}
         if phase['kind'] == 'teacher':
             out['teacher'] = self._teacher_loss(model, phase)
         return out
 
+    def reference(self, model: nn.Module) -> dict | None:
+        """Return the physics alone's validation score (a hybrid served at threshold 0)."""
+        if not hasattr(model, 'served_at'):
+            return None
+        with model.served_at(PHYSICS_ALONE):
+            return {'score': self.validation_errors(model).score(self.state_std_np)}
+
+    @torch.no_grad()
     def _teacher_loss(self, model, phase) -> float:
         length = self._length(phase)
         model.eval()

@@ -2,7 +2,8 @@
 Train one model from a resolved config: data, physics fit, statistics, fit loop.
 
 ``train(cfg, out_dir)`` writes into ``out_dir``: ``model.safetensors`` (the best
-model by validation multistep error, with every figure of its config), ``best`` and
+model by validation multistep error, with every figure of its config; a hybrid served
+at the relative threshold its validation runs chose, ``select_threshold``), ``best`` and
 ``last`` checkpoints, ``log.jsonl`` (one line per epoch) and ``config.yaml``.
 Under torchrun every rank calls ``train`` and trains its share
 (``hybrid_models.training.distributed``); only rank 0 writes those files.
@@ -30,10 +31,11 @@ from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import CompositeModel, RegressionModel
 from hybrid_models.run_store import RowFile, RowWriter, build_split
+from hybrid_models.selection import PHYSICS_ALONE, choose, threshold_grid
 from hybrid_models.streaming import Moments, RowSample
 from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.distributed import Group, join, leave
-from hybrid_models.training.loop import BEST, LAST, LoopState, fit
+from hybrid_models.training.loop import BEST, LAST, REFERENCE_EPOCH, LoopState, fit
 from hybrid_models.training.tasks import RecurrentTask
 from hybrid_models.vehicle import VehicleSpec, load_vessel
 from vessel_datasets.format import read_dataset
@@ -151,7 +153,7 @@ def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
         group.barrier()
         base.update(phys_info)
     model.to(group.device)
-    task = RecurrentTask(stores['train'].runs, stores['val'].runs, tcfg, state_norm.std,
+    task = RecurrentTask(spec, stores['train'].runs, stores['val'].runs, tcfg, state_norm.std,
                          z_phy_train, z_phy_val, group=group)
     base['parameters'] = sum(p.numel() for p in model.parameters())
 
@@ -165,6 +167,11 @@ def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
         return {**checkpoint_config(), 'epochs': state.epoch, 'rank': group.rank}
     best = load_checkpoint(out_dir / BEST if (out_dir / BEST).exists() else out_dir / LAST)
     model.load_state_dict(best.model_state)
+    if isinstance(model, HybridModel) and tcfg['selection']['do_no_harm']:
+        # Only this rank is left: it forecasts every validation window itself.
+        base['selection'] = select_threshold(model, task.alone(), tcfg, state.best_epoch)
+        base['bound'].update(relative_threshold=model.relative_threshold,
+                             half_width=model.bound.tolist())
     summary = {**checkpoint_config(), 'val': best.config.get('val'),
                'best_epoch': state.best_epoch, 'epochs': state.epoch,
                'bad_steps': state.bad_steps, 'rollbacks': state.rollbacks,
@@ -173,6 +180,38 @@ def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
                'wall_seconds_this_session': round(time.monotonic() - t_start, 1)}
     save_checkpoint(out_dir / MODEL_FILE, model, summary)
     return summary
+
+
+def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
+                     best_epoch: int) -> dict:
+    """
+    Serve the best epoch at the threshold chosen on validation (``hybrid_models.selection``).
+
+    The model keeps the chosen threshold (its config's ``relative_threshold`` is the cap);
+    the returned record holds the figures of every candidate and of the physics alone.
+    """
+    cap = model.relative_threshold
+    grid = threshold_grid(tcfg['selection']['thresholds'], cap)
+    std = task.state_std_np
+
+    def figures(threshold):
+        with model.served_at(threshold):
+            errors = task.validation_errors(model)
+        return {'relative_threshold': threshold, 'score': errors.score(std),
+                'profile': errors.profile(model.spec)}
+
+    physics = figures(PHYSICS_ALONE)
+    if best_epoch == REFERENCE_EPOCH:
+        choice = {'relative_threshold': PHYSICS_ALONE, 'score': physics['score'],
+                  'reason': 'no epoch forecast the validation runs better than the physics '
+                            'alone; the physics alone is served', 'candidates': []}
+    else:
+        choice = choose([figures(t) for t in grid], physics)
+    model.set_threshold(choice['relative_threshold'])
+    print(f"served threshold {choice['relative_threshold']}: {choice['reason']}",
+          file=sys.stderr)
+    return {**choice, 'cap': cap, 'grid': grid, 'physics': physics,
+            'best_epoch': best_epoch}
 
 
 def _fit_qlag(cfg, spec, train_runs, val_runs, state_norm):
