@@ -17,6 +17,7 @@ PROGRAMS = {
     'compare_physics': 'hybrid_models',
     'set_threshold': 'hybrid_models',
     'model_card': 'hybrid_models',
+    'crossval': 'hybrid_models',
     'simulate': 'vessel_datasets',
     'bag_to_dataset': 'vessel_datasets',
     'table_to_dataset': 'vessel_datasets',

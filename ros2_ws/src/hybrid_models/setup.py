@@ -27,5 +27,6 @@ setup(
         'reproduce_table2 = hybrid_models.cli.reproduce_table2:main',
         'compare_physics = hybrid_models.cli.compare_physics:main',
         'model_card = hybrid_models.cli.model_card:main',
+        'crossval = hybrid_models.cli.crossval:main',
     ]},
 )

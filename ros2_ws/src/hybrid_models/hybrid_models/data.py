@@ -163,6 +163,22 @@ def cut_windows(runs: list, starts: list[np.ndarray], window: int, horizon: int,
     return gather_windows(runs, *window_index(starts), window, horizon, target)
 
 
+def evaluation_protocol(vessel, window: int | None = None, horizon: int | None = None,
+                        stride: int | None = None) -> tuple[int, int, int]:
+    """
+    Window, horizon and stride (samples) of test forecasts; None takes the vessel's.
+
+    Forecasts start every horizon/7.5 samples: 120 for the paper's 900 s at 1 Hz.
+    """
+    window = int(window if window is not None else vessel.window)
+    horizon = int(horizon if horizon is not None else vessel.horizon)
+    stride = int(stride if stride is not None else max(1, round(horizon / 7.5)))
+    if min(window, horizon, stride) < 1:
+        raise ValueError(f'window, horizon and stride must be at least 1 sample, got '
+                          f'{window}, {horizon}, {stride}')
+    return window, horizon, stride
+
+
 def forecast_windows(runs: list, window: int, horizon: int, stride: int,
                      target: str = 'measured') -> Windows:
     """Cut evaluation forecasts: one every ``stride`` samples across each run."""

@@ -11,6 +11,9 @@ compared with the noise-free ``<state>_true`` columns where the dataset has them
 from __future__ import annotations
 
 from dataclasses import dataclass
+import hashlib
+import json
+from pathlib import Path
 
 import numpy as np
 import torch
@@ -127,3 +130,66 @@ def residual_share(model: HybridModel, windows: Windows) -> dict:
     if torch.isfinite(model.bound).all():
         out['fraction_above_90pct_of_bound'] = (res > 0.9 * model.bound).float().mean(0).tolist()
     return out
+
+
+def physics_identity(physical) -> tuple[str, str]:
+    """
+    Return (fingerprint, name) of a hybrid's physical part (a ``nets.PhysicalModule``).
+
+    Equal fingerprints mean equal forecasts: the description and every learned value
+    agree. The name says the kind and the file it came from, e.g. 'mmg physics
+    (augmented_mmg)'; a regression's is its kind alone ('hyd physics').
+    """
+    described = physical.describe()
+    digest = hashlib.sha256(json.dumps(described, sort_keys=True, default=str).encode())
+    for key, value in sorted(physical.numpy_model().arrays().items()):
+        digest.update(key.encode())
+        digest.update(np.ascontiguousarray(value).tobytes())
+    parts = [described] if 'first_principles' not in described else [
+        described['first_principles']]
+    sources = [str(p.get('params') or p.get('physics_source') or '') for p in parts]
+    stems = [Path(s).stem for s in sources if s and not s.startswith('<')]
+    kind = described['kind']
+    name = (kind if kind.startswith('physics') else f'{kind} physics') + (
+        f' ({", ".join(stems)})' if stems else '')
+    return digest.hexdigest()[:16], name
+
+
+def over_seeds(values: list):
+    """
+    Mean and standard deviation over seeds of equally shaped figures (nested dicts/lists).
+
+    Return (mean, sd) of the same shape; a figure that is None in any seed (a diverged
+    run) is None in both, and sd is None for a single seed.
+    """
+    first = values[0]
+    if isinstance(first, dict):
+        pairs = {k: over_seeds([v[k] for v in values]) for k in first}
+        return {k: m for k, (m, _) in pairs.items()}, {k: s for k, (_, s) in pairs.items()}
+    if isinstance(first, list):
+        pairs = [over_seeds([v[i] for v in values]) for i in range(len(first))]
+        return [m for m, _ in pairs], [s for _, s in pairs]
+    if isinstance(first, bool) or not isinstance(first, (int, float)) or first is None:
+        return first, None
+    if any(v is None for v in values):
+        return None, None
+    x = np.asarray(values, np.float64)
+    return float(x.mean()), (float(x.std(ddof=1)) if len(x) > 1 else None)
+
+
+SEED_FIGURES = ('rmse', 'trajectory', 'profile')
+
+
+def seed_row(label: str, metrics: list[dict], **extra) -> dict:
+    """
+    One table row of a model trained with several seeds: mean figures, their spread.
+
+    ``metrics``: one ``forecast_metrics`` result per seed. The row's ``metrics`` are the
+    means (so tables and checks read it like a single model's), ``spread`` the standard
+    deviations over seeds, ``per_seed`` each seed's trajectory error.
+    """
+    mean, sd = over_seeds([{k: m[k] for k in SEED_FIGURES} for m in metrics])
+    merged = {**metrics[0], **mean,
+              'diverged': any(m['diverged'] for m in metrics)}
+    return {'label': label, 'seeds': len(metrics), 'metrics': merged, 'spread': sd,
+            'per_seed': [m['trajectory']['mean'] for m in metrics], **extra}

@@ -32,21 +32,44 @@ def trajectory_cell(traj: dict) -> str:
 
 
 def markdown_table(rows: list[dict], spec: VehicleSpec) -> str:
-    """Rows of {'label', 'metrics'}: per-state RMSE and the trajectory error."""
-    units = zip(spec.state_names, spec.state_units, strict=True)
+    """
+    Rows of {'label', 'metrics'}: per-state RMSE and the trajectory error.
+
+    Rows of several seeds (``evaluation.seed_row``) show mean ± standard deviation over
+    the seeds; then the trajectory columns do too, and a single model's ± is omitted
+    (its CI95 over forecasts is another kind of spread).
+    """
+    seeded = any(row.get('seeds', 1) > 1 for row in rows)
+    units = list(zip(spec.state_names, spec.state_units, strict=True))
     head = ['model'] + [f'{s} [{u}]' for s, u in units]
-    head.append('trajectory, mean ± CI95 [m]')
+    if seeded:
+        head += ['seeds', 'trajectory, mean ± sd over seeds [m]', 'at the horizon [m]']
+    else:
+        head += ['trajectory, mean ± CI95 [m]']
     lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
     for row in rows:
-        m = row['metrics']
+        m, sd = row['metrics'], row.get('spread')
         if m['diverged'] and m['trajectory']['mean'] is None:
-            cells = ['diverged'] * spec.n_state + ['diverged']
+            cells = ['diverged'] * (len(head) - 1)
         else:
-            cells = [_fmt(m['rmse'][s], DECIMALS.get(u, 4))
-                     for s, u in zip(spec.state_names, spec.state_units, strict=True)]
-            cells.append(trajectory_cell(m['trajectory']))
+            cells = [_with_spread(m['rmse'][s], sd and sd['rmse'][s], DECIMALS.get(u, 4))
+                     for s, u in units]
+            traj = m['trajectory']
+            if seeded:
+                d = 0 if (traj['mean'] or 0) >= 100 else 1 if (traj['mean'] or 0) >= 10 else 2
+                cells += [str(row.get('seeds', 1)),
+                          _with_spread(traj['mean'], sd and sd['trajectory']['mean'], d),
+                          _with_spread(traj['final_mean'],
+                                       sd and sd['trajectory']['final_mean'], d)]
+            else:
+                cells.append(trajectory_cell(traj))
         lines.append('| ' + ' | '.join([row['label']] + cells) + ' |')
     return '\n'.join(lines) + '\n'
+
+
+def _with_spread(value, spread, decimals: int) -> str:
+    cell = _fmt(value, decimals)
+    return cell if spread is None or value is None else f'{cell} ± {spread:.{decimals}f}'
 
 
 def plot_states(path: Path, spec: VehicleSpec, true: np.ndarray, preds: dict[str, np.ndarray],
@@ -115,6 +138,26 @@ def plot_error_per_minute(path: Path, spec: VehicleSpec, true: np.ndarray,
     ax.set_xticks(minutes, labels=[str(m) for m in minutes])
     ax.grid(alpha=0.3)
     ax.legend()
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def plot_position_curves(path: Path, spec: VehicleSpec,
+                         curves: dict[str, list[list[float]]]) -> None:
+    """Mean position error over the horizon per model: the seeds' mean, their range shaded."""
+    fig, ax = plt.subplots(figsize=(8, 4))
+    for k, (label, per_seed) in enumerate(curves.items()):
+        c = np.asarray(per_seed, np.float64)
+        t = np.arange(1, c.shape[1] + 1) * spec.dt
+        ax.plot(t, c.mean(axis=0), color=f'C{k}', lw=1.5,
+                label=label + (f' ({len(c)} seeds)' if len(c) > 1 else ''))
+        if len(c) > 1:
+            ax.fill_between(t, c.min(axis=0), c.max(axis=0), color=f'C{k}', alpha=0.2)
+    ax.set_xlabel('time since forecast start [s]')
+    ax.set_ylabel('mean position error [m]')
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

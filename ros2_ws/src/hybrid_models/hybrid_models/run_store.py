@@ -123,31 +123,49 @@ def stream_run(ds: Dataset, run_id: str, columns: list[str]) -> Iterator[np.ndar
         yield values.astype(DTYPE)
 
 
+MIRROR_SUFFIX = '~mirror'   # run id of a run's port/starboard mirror image
+
+
+def mirror_rows(spec: VehicleSpec):
+    """Return the map of rows [z | c | z_true] onto their mirror image (vessel's ``mirror``)."""
+    state_signs, sources, control_signs = spec.mirror_maps()
+    ns = spec.n_state
+    columns = np.concatenate([np.arange(ns), ns + np.asarray(sources, dtype=np.int64),
+                              ns + len(sources) + np.arange(ns)])
+    signs = np.asarray([*state_signs, *control_signs, *state_signs], dtype=DTYPE)
+    return lambda rows: rows[..., columns] * signs
+
+
 def build_split(ds: Dataset, split: str, spec: VehicleSpec, cache: Path, sample_rows: int,
-                seed: int, write: bool = True) -> SplitStore:
+                seed: int, write: bool = True, mirror: bool = False) -> SplitStore:
     """
     Stream every run of ``split`` once: cache file, statistics, sample of one-step pairs.
 
     ``write=False`` (another process on this machine writes the cache) only computes.
+    ``mirror`` adds each run's port/starboard mirror image as a run of its own
+    (``<run_id>~mirror``, the vessel's ``mirror_maps``), statistics and pairs included.
     """
     ns, nc = spec.n_state, spec.n_control
     state, control, pairs = Moments(ns), Moments(nc), RowSample(sample_rows, seed)
+    images = [('', None)] + ([(MIRROR_SUFFIX, mirror_rows(spec))] if mirror else [])
     runs = []
     for run_id in ds.run_ids(split):
-        path = cache / f'{run_id}.f32'
-        writer = RowWriter(path if write else None)
-        prev, length = None, 0
-        for block in stream_run(ds, run_id, run_columns(ds, run_id, spec)):
-            writer.write(block)
-            length += len(block)
-            rows = block if prev is None else np.concatenate([prev, block])
-            z, c = rows[:, :ns], rows[:, ns:ns + nc]
-            state.add(z[:-1])
-            control.add(c[:-1])
-            pairs.add(np.concatenate([z[:-1], c[:-1], z[1:]], axis=1))
-            prev = rows[-1:]
-        writer.close()
-        runs.append(RunFile(run_id, path, ns, nc, length))
+        for suffix, image in images:
+            path = cache / f'{run_id}{suffix}.f32'
+            writer = RowWriter(path if write else None)
+            prev, length = None, 0
+            for block in stream_run(ds, run_id, run_columns(ds, run_id, spec)):
+                block = block if image is None else image(block)
+                writer.write(block)
+                length += len(block)
+                rows = block if prev is None else np.concatenate([prev, block])
+                z, c = rows[:, :ns], rows[:, ns:ns + nc]
+                state.add(z[:-1])
+                control.add(c[:-1])
+                pairs.add(np.concatenate([z[:-1], c[:-1], z[1:]], axis=1))
+                prev = rows[-1:]
+            writer.close()
+            runs.append(RunFile(run_id + suffix, path, ns, nc, length))
     if not runs:
         raise ValueError(f'dataset {ds.root} has no runs in split {split!r}')
     return SplitStore(runs, state, control, pairs)

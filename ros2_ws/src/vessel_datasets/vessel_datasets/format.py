@@ -218,6 +218,20 @@ class Dataset:
             raise DatasetError(f'unknown split {split!r}; use one of {SPLITS}')
         return list(self.manifest['split'][split])
 
+    def recordings(self) -> dict[str, list[str]]:
+        """
+        Return the run ids of every recording (bag, log file), by recording.
+
+        Runs cut from one recording share its conditions, so splits and folds keep them
+        together; a run that names no source is a recording of its own.
+        """
+        out: dict[str, list[str]] = {}
+        for entry in self.manifest['runs']:
+            source = entry.get('source') or {}
+            key = str(source.get('bag') or source.get('file') or entry['id'])
+            out.setdefault(key, []).append(entry['id'])
+        return out
+
     def load(self, run_id: str) -> pd.DataFrame:
         """Load one run's table."""
         entry = next((r for r in self.manifest['runs'] if r['id'] == run_id), None)
@@ -230,6 +244,41 @@ class Dataset:
     def load_split(self, split: str) -> dict[str, pd.DataFrame]:
         """Load every run of one split, keyed by run id."""
         return {r: self.load(r) for r in self.run_ids(split)}
+
+
+def resplit(dataset: Dataset, out_dir: str | os.PathLike,
+            split: Mapping[str, Iterable[str]], note: str = '') -> Dataset:
+    """
+    Write a view of ``dataset`` with another split; return it.
+
+    The view is a manifest whose runs are symbolic links to the dataset's own files, so
+    it costs no copy; runs the split does not name are 'unused'. ``note`` says why (it is
+    kept in the manifest's provenance beside the original's).
+    """
+    ids = {name: sorted(split.get(name, ())) for name in SPLITS}
+    known = set(dataset.run_ids())
+    named = [r for runs in ids.values() for r in runs]
+    if unknown := sorted(set(named) - known):
+        raise DatasetError(f'{dataset.root}: no runs {unknown}')
+    if len(named) != len(set(named)):
+        raise DatasetError('a run is named in more than one split')
+    out = Path(out_dir)
+    (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
+    split_of = {r: name for name, runs in ids.items() for r in runs}
+    manifest = json.loads(json.dumps(dataset.manifest))
+    for entry in manifest['runs']:
+        link = out / entry['file']
+        link.unlink(missing_ok=True)
+        link.symlink_to((dataset.root / entry['file']).resolve())
+        entry['split'] = split_of.get(entry['id'], 'unused')
+    manifest['split'] = {**manifest['split'], **ids}
+    manifest['provenance'] = {'resplit_of': str(dataset.root), 'note': note,
+                              'original': manifest.get('provenance', {})}
+    path = out / MANIFEST
+    tmp = path.with_suffix('.json.tmp')
+    tmp.write_text(json.dumps(manifest, indent=2))
+    tmp.replace(path)
+    return read_dataset(out)
 
 
 def read_dataset(path: str | os.PathLike) -> Dataset:

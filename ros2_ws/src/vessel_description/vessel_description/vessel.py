@@ -26,9 +26,11 @@ from .resources import data_dir, read_yaml
 from .vocabulary import (
     ACTUATOR_KINDS,
     ENVIRONMENT,
+    ENVIRONMENT_MIRROR,
     PLANAR_STATES,
     POSE,
     ROLL_STATES,
+    STATE_MIRROR,
     STATES,
     WATERS,
 )
@@ -38,7 +40,7 @@ VESSELS_DIR = 'vessels'
 _NAME = re.compile(r'^[A-Za-z][A-Za-z0-9_]*$')
 TOP_KEYS = ('format', 'name', 'description', 'rate_hz', 'window_s', 'horizon_s', 'states',
             'limits', 'actuators', 'environment', 'waters', 'particulars', 'physics',
-            'recordings')
+            'recordings', 'mirror')
 REQUIRED_KEYS = ('name', 'rate_hz', 'window_s', 'horizon_s', 'states', 'actuators',
                  'particulars')
 ACTUATOR_KEYS = ('kind', 'unit', 'range', 'description')
@@ -80,6 +82,9 @@ class Vessel:
     description: str = ''
     source: str = '<inline>'
     waters: str = DEFAULT_WATERS
+    # Port/starboard symmetry: each actuator's mirror image ('-' for a sign change), or
+    # None when the vessel does not declare itself symmetric.
+    mirror: Mapping[str, str] | None = None
 
     # ------------------------------------------------------------- vector contract
     @property
@@ -181,6 +186,28 @@ class Vessel:
         """Columns every run table of this vessel has: time, states, pose, controls."""
         return ('t',) + self.states + tuple(POSE) + self.control_names
 
+    def mirror_maps(self) -> tuple[list[float], list[int], list[float]]:
+        """
+        Return how the mirror image of a motion is made from it, in the model vectors.
+
+        (state signs, control source columns, control signs): the mirrored z is
+        ``z * state_signs`` and the mirrored c is ``c[..., sources] * control_signs``.
+        Refused (VesselError) for a vessel whose file declares no ``mirror``.
+        """
+        if self.mirror is None:
+            raise VesselError(f'vessel {self.name!r} ({self.source}) declares no mirror '
+                              f'image (key mirror): it is not known to be symmetric')
+        sources, signs = [], []
+        for name in self.control_names:
+            image = self.mirror.get(name)
+            if image is None:   # an environment column
+                sources.append(self.control_index(name))
+                signs.append(ENVIRONMENT_MIRROR[name])
+                continue
+            sources.append(self.control_index(image.lstrip('-')))
+            signs.append(-1.0 if image.startswith('-') else 1.0)
+        return [STATE_MIRROR[s] for s in self.states], sources, signs
+
     # ------------------------------------------------------------- identity
     def contract(self) -> dict[str, Any]:
         """Return what a model of this vessel depends on: vectors and sample rate."""
@@ -214,6 +241,8 @@ class Vessel:
             'physics': self.physics,
             'recordings': copy.deepcopy(dict(self.recordings)),
         }
+        if self.mirror is not None:
+            out['mirror'] = dict(self.mirror)
         return out
 
     @classmethod
@@ -264,11 +293,12 @@ def parse_vessel(data: Any, source: str = '<inline>') -> Vessel:
     if not isinstance(recordings, Mapping) or set(recordings) - set(RECORDING_KINDS):
         raise VesselError(f'{where}: recordings takes {list(RECORDING_KINDS)} mappings')
     description = data.get('description') or ''
+    mirror = _mirror(data.get('mirror'), actuators, where)
     return Vessel(name=name, rate_hz=rate, window_s=window_s, horizon_s=horizon_s,
                   states=states, actuators=actuators, environment=environment,
                   particulars=particulars, limits=limits, physics=physics,
                   recordings=plain(recordings), description=str(description), source=source,
-                  waters=waters)
+                  waters=waters, mirror=mirror)
 
 
 def _positive(value: Any, where: str) -> float:
@@ -356,6 +386,30 @@ def _limits(value: Any, states: tuple[str, ...], where: str) -> dict[str, tuple[
             raise VesselError(f'{where}: limits.{key} must be [low, high], got {rng!r}')
         out[key] = (float(rng[0]), float(rng[1]))
     return out
+
+
+def _mirror(value: Any, actuators: tuple[Actuator, ...], where: str) -> dict | None:
+    """Check a mirror declaration: every actuator's image, of its kind, mirrored back."""
+    if value is None:
+        return None
+    label = f'{where}: mirror'
+    names = {a.name: a for a in actuators}
+    if not isinstance(value, Mapping) or set(value) != set(names) or not all(
+            isinstance(v, str) for v in value.values()):
+        raise VesselError(f'{label} must give every actuator {sorted(names)} its mirror '
+                          f"image: itself, another actuator, '-' before it for a sign change")
+    for name, image in value.items():
+        target = image.lstrip('-')
+        if target not in names or image.count('-') > 1:
+            raise VesselError(f'{label}.{name}: {image!r} is not an actuator (or -actuator)')
+        if names[target].kind != names[name].kind:
+            raise VesselError(f'{label}.{name}: its image {target} is a {names[target].kind}, '
+                              f'not a {names[name].kind}')
+        back = value[target]
+        if back.lstrip('-') != name or (back.startswith('-') != image.startswith('-')):
+            raise VesselError(f'{label}.{name}: the mirror of the mirror must be the actuator '
+                              f'itself ({name} -> {image} -> {back})')
+    return {str(k): str(v) for k, v in value.items()}
 
 
 def plain(value: Any) -> Any:

@@ -18,6 +18,9 @@ STATES: dict[str, tuple[str, str]] = {
     'r': ('rad/s', 'yaw rate, body frame FRD (turn to starboard +)'),
     'phi': ('rad', 'roll angle (starboard down +)'),
 }
+# Sign of each state in the port/starboard mirror image of a motion (the centre plane
+# reflects sway, roll and yaw; surge stays).
+STATE_MIRROR: dict[str, float] = {'u': 1.0, 'v': -1.0, 'p': -1.0, 'r': -1.0, 'phi': -1.0}
 # Every vessel moves in the plane: trajectories integrate these.
 PLANAR_STATES = ('u', 'v', 'r')
 # Roll is modelled as a pair or not at all.
@@ -46,6 +49,10 @@ ENVIRONMENT: dict[str, tuple[tuple[str, str, str], ...]] = {
         ('wind_dir_sin', '1', 'sin of that angle (wind from starboard +)'),
     ),
 }
+
+# Sign of each environment column in the mirror image (wind from port becomes starboard).
+ENVIRONMENT_MIRROR: dict[str, float] = {'wind_speed': 1.0, 'wind_dir_cos': 1.0,
+                                        'wind_dir_sin': -1.0}
 
 # Where a vessel's recordings come from: ``open`` water (wind, waves and currents can act)
 # or a ``basin`` (towing tank, model basin: still water, no current).

@@ -27,7 +27,7 @@ import time
 import torch
 
 from hybrid_models.checkpoint import CheckpointError, load_model
-from hybrid_models.data import dataset_hash
+from hybrid_models.data import dataset_hash, evaluation_protocol
 from hybrid_models.studies.compare_physics import (
     evaluate_all,
     format_threshold,
@@ -35,7 +35,7 @@ from hybrid_models.studies.compare_physics import (
     train_all,
     write_report,
 )
-from hybrid_models.training.config import config_dir, evaluation_protocol
+from hybrid_models.training.config import config_dir
 from hybrid_models.training.train import MODEL_FILE
 from hybrid_models.vehicle import VehicleSpec
 from vessel_physics.augmented import load_physics

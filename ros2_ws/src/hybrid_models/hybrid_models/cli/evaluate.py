@@ -6,10 +6,16 @@ Evaluate trained checkpoints on the test runs; write table, figures and JSON.
     ros2 run hybrid_models evaluate ...          # the same program, installed
 
 Each positional argument is a model.safetensors file or a training output directory;
-its label is the config name (or give --labels). Writes into --out: table.md (per-state
-RMSE and trajectory error mean ± 95 % CI, Table-2 layout), results.json (every number),
-states_over_time.png, trajectories.png, trajectory_error_per_minute.png and, with
---sweep LABEL, rmse_vs_threshold.png (that hybrid constrained at inference).
+its label is the config name (or give --labels). Checkpoints that share a label are
+seeds of one model: their row gives the mean ± standard deviation over the seeds (and
+each seed's trajectory error in results.json). With --physics-only, every distinct
+physics of the hybrids (by file and fitted values, not by kind) gets one row of its
+own, and each hybrid is checked against its physics at every reported horizon step.
+Writes into --out: table.md (per-state RMSE and trajectory error, Table-2 layout),
+results.json (every number), states_over_time.png, trajectories.png,
+trajectory_error_per_minute.png and, with --sweep LABEL, rmse_vs_threshold.png (that
+hybrid constrained at inference). Cross-validation over runs (each run held out once,
+several seeds, trainings included) is the crossval program.
 """
 
 import argparse
@@ -23,16 +29,18 @@ import torch
 
 from hybrid_models import report
 from hybrid_models.checkpoint import CheckpointError, load_model
-from hybrid_models.data import checked_vessel, dataset_hash, load_runs
+from hybrid_models.data import checked_vessel, dataset_hash, evaluation_protocol, load_runs
 from hybrid_models.evaluation import (
     PhysicsOnly,
     evaluate_model,
+    physics_identity,
     residual_share,
+    seed_row,
     test_windows,
     threshold_sweep,
 )
 from hybrid_models.nets import HybridModel
-from hybrid_models.training.config import ConfigError, evaluation_protocol
+from hybrid_models.selection import harms
 from hybrid_models.training.train import MODEL_FILE
 from hybrid_models.vehicle import VesselError
 from vessel_datasets.format import DatasetError
@@ -85,7 +93,7 @@ def main(argv=None) -> int:
         spec = checked_vessel(args.dataset, loaded, args.checkpoints)
         args.window, args.horizon, args.stride = evaluation_protocol(
             spec, args.window, args.horizon, args.stride)
-    except (DatasetError, VesselError, ConfigError) as exc:
+    except (DatasetError, VesselError, ValueError) as exc:
         print(f'evaluate.py: error: {exc}', file=sys.stderr)
         return 2
     runs = load_runs(args.dataset, args.split, spec)
@@ -94,30 +102,26 @@ def main(argv=None) -> int:
           f'{args.split} runs', file=sys.stderr)
     args.out.mkdir(parents=True, exist_ok=True)
     rows, preds, models = [], {}, {}
-    for label, (model, cfg) in zip(labels, loaded, strict=True):
-        state_std = np.asarray(cfg['normalization']['state']['std'])
-        start = time.monotonic()
-        ev = evaluate_model(label, model, windows, spec, state_std)
-        seconds = time.monotonic() - start
-        extra = {'seconds': round(seconds, 2),
-                 'ms_per_forecast_step_batched': round(1e3 * seconds / args.horizon, 3),
-                 'train_seconds': cfg.get('train_seconds'), 'epochs': cfg.get('epochs'),
-                 'best_epoch': cfg.get('best_epoch'), 'stop_reason': cfg.get('stop_reason'),
-                 'val': cfg.get('val'),
-                 'model': cfg.get('model'), 'parameters': cfg.get('parameters')}
-        if isinstance(model, HybridModel):
-            extra['bound'] = cfg.get('bound')
-            extra['residual'] = residual_share(model, windows)
-        rows.append({'label': label, 'metrics': ev.metrics, **extra})
-        preds[label], models[label] = ev.pred, (model, cfg)
-        traj = ev.metrics['trajectory']
-        print(f'{label:>16s}: trajectory {report.trajectory_cell(traj)} m', file=sys.stderr)
-        if args.physics_only and isinstance(model, HybridModel):
-            phys_label = f"{cfg['model']['physical']['kind']} (physics only)"
-            if all(r['label'] != phys_label for r in rows):
-                ev = evaluate_model(phys_label, PhysicsOnly(model.physical), windows, spec,
-                                    state_std)
-                rows.append({'label': phys_label, 'metrics': ev.metrics})
+    physics_rows: dict[str, dict] = {}
+    for label, members in _by_label(labels, loaded).items():
+        row, ev = _model_row(label, members, windows, spec, args.horizon)
+        rows.append(row)
+        preds[label], models[label] = ev.pred, members[0]
+        print(f'{label:>16s}: trajectory {report.trajectory_cell(row["metrics"]["trajectory"])}'
+              f' m' + (f' (mean of {row["seeds"]} seeds)' if row.get('seeds', 1) > 1 else ''),
+              file=sys.stderr)
+        if args.physics_only and isinstance(members[0][0], HybridModel):
+            # Each seed against its own physics (seeds on other data fit other physics).
+            known = len(physics_rows)
+            own = [physics_rows[_physics_row(m, windows, spec, physics_rows)] for m in members]
+            rows += list(physics_rows.values())[known:]
+            row['physics'] = sorted({p['label'] for p in own})
+            row['harms_vs_physics'] = [
+                harms(m['profile'], p['metrics']['profile']) for m, p in zip(
+                    row.get('per_seed_metrics', [row['metrics']]), own, strict=True)]
+            worse = sum(bool(h) for h in row['harms_vs_physics'])
+            print(f'{label:>16s}: worse than {", ".join(row["physics"])} at a reported step '
+                  f'in {worse} of {len(own)} seed(s)', file=sys.stderr)
     result = {'dataset': {'path': str(args.dataset), 'sha256': dataset_hash(args.dataset),
                           'split': args.split, 'runs': [r.run_id for r in runs]},
               'protocol': {'window': args.window, 'horizon': args.horizon,
@@ -149,6 +153,53 @@ def main(argv=None) -> int:
                                  windows.z_target, drawn)
     print(report.markdown_table(rows, spec))
     return 0
+
+
+def _by_label(labels: list[str], loaded: list) -> dict[str, list]:
+    """Group (model, config) pairs by label, in order: seeds of one model share one."""
+    groups: dict[str, list] = {}
+    for label, member in zip(labels, loaded, strict=True):
+        groups.setdefault(label, []).append(member)
+    return groups
+
+
+def _model_row(label: str, members: list, windows, spec, horizon: int):
+    """Evaluate every seed of one model; return its table row and the first seed's run."""
+    evaluated, started = [], time.monotonic()
+    for model, cfg in members:
+        state_std = np.asarray(cfg['normalization']['state']['std'])
+        evaluated.append(evaluate_model(label, model, windows, spec, state_std))
+    seconds = (time.monotonic() - started) / len(members)
+    model, cfg = members[0]
+    extra = {'seconds': round(seconds, 2),
+             'ms_per_forecast_step_batched': round(1e3 * seconds / horizon, 3),
+             'train_seconds': cfg.get('train_seconds'), 'epochs': cfg.get('epochs'),
+             'best_epoch': cfg.get('best_epoch'), 'stop_reason': cfg.get('stop_reason'),
+             'val': cfg.get('val'), 'model': cfg.get('model'),
+             'parameters': cfg.get('parameters')}
+    if isinstance(model, HybridModel):
+        extra['bound'] = cfg.get('bound')
+        extra['residual'] = residual_share(model, windows)
+        extra['served_thresholds'] = [c['model'].get('relative_threshold') for _, c in members]
+    if len(members) == 1:
+        return {'label': label, 'metrics': evaluated[0].metrics, **extra}, evaluated[0]
+    row = seed_row(label, [e.metrics for e in evaluated], **extra)
+    row['per_seed_metrics'] = [e.metrics for e in evaluated]
+    return row, evaluated[0]
+
+
+def _physics_row(member, windows, spec, physics_rows: dict) -> str:
+    """Add the row of a hybrid's physics alone unless it has one; return its fingerprint."""
+    model, cfg = member
+    fingerprint, name = physics_identity(model.physical)
+    if fingerprint not in physics_rows:
+        taken = {row['label'] for row in physics_rows.values()}
+        label = name if name not in taken else f'{name} [{fingerprint[:6]}]'
+        ev = evaluate_model(label, PhysicsOnly(model.physical), windows, spec,
+                            np.asarray(cfg['normalization']['state']['std']))
+        physics_rows[fingerprint] = {'label': label, 'metrics': ev.metrics,
+                                     'fingerprint': fingerprint}
+    return fingerprint
 
 
 if __name__ == '__main__':

@@ -2,9 +2,11 @@
 Write a model card for a hybrid checkpoint: what it is, what it learned from, how good.
 
 Evaluates the checkpoint with the compiled forecast engine (the code the predictor
-node runs) on the test split of a dataset: 900-step forecasts every STRIDE samples of
-every test run, against the noise-free states where the dataset has them. Writes
-MODEL_CARD.md and model_card.json.
+node runs) on the test split of a dataset: forecasts over the vessel's horizon every
+STRIDE samples of every test run, against the noise-free states where the dataset has
+them, and the physics alone beside it at every quarter of the horizon. A dataset of
+another vessel or rate is refused. Shows how the served relative threshold was chosen
+on the validation runs. Writes MODEL_CARD.md and model_card.json.
 
 example (the embedded default model):
   model_card.py MODELS/model.safetensors --dataset data/ship96 --out MODELS
@@ -20,11 +22,12 @@ import time
 import numpy as np
 from tqdm import tqdm
 
-from hybrid_models.checkpoint_format import CheckpointError, read_header
+from hybrid_models.checkpoint_format import CheckpointError, read_header, vessel_of
 from hybrid_models.cli.arguments import threshold as threshold_value
-from hybrid_models.data import dataset_hash, forecast_windows, load_runs
+from hybrid_models.data import dataset_hash, evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import forecast_metrics
+from hybrid_models.selection import PHYSICS_ALONE
 from vessel_datasets.format import DatasetError, read_dataset
 
 
@@ -38,29 +41,70 @@ def parse_args(argv=None):
                         help="relative threshold served (default: the checkpoint's own, "
                              "which set_threshold writes; 0: physics alone; 'none': "
                              'unbounded)')
-    parser.add_argument('--horizon', type=int, default=900, help='forecast steps (default 900)')
-    parser.add_argument('--stride', type=int, default=120,
-                        help='samples between forecasts in a test run (default 120)')
+    parser.add_argument('--horizon', type=int,
+                        help="forecast steps (default: the vessel's horizon)")
+    parser.add_argument('--stride', type=int,
+                        help='samples between forecasts in a test run (default: horizon/7.5)')
     parser.add_argument('--out', type=Path, required=True, help='folder for the card')
     return parser.parse_args(argv)
 
 
-def evaluate(engine: Forecaster, dataset, horizon: int, stride: int) -> dict:
-    """Forecast the test split with the engine; return metrics and the per-call latency."""
+def evaluate(engine: Forecaster, physics: Forecaster, dataset, horizon: int,
+             stride: int) -> dict:
+    """Forecast the test split with the engine and the physics alone; return metrics."""
     runs = load_runs(dataset, 'test', engine.spec)
     windows = forecast_windows(runs, engine.window, horizon, stride, target='true')
     predictions = np.empty(windows.z_target.shape)
+    physics_alone = np.empty(windows.z_target.shape)
     seconds = []
     for i in tqdm(range(len(windows)), desc='test forecasts', file=sys.stderr):
         started = time.perf_counter()
         predictions[i] = engine.forecast(windows.z_window[i], windows.c_window[i],
                                          windows.c_future[i]).hybrid[0]
         seconds.append(time.perf_counter() - started)
+        physics_alone[i] = physics.forecast(windows.z_window[i], windows.c_window[i],
+                                            windows.c_future[i]).hybrid[0]
     metrics = forecast_metrics(predictions, windows.z_target, engine.spec)
+    metrics['physics_alone'] = forecast_metrics(physics_alone, windows.z_target, engine.spec)
     metrics['latency_ms_p50'] = float(np.median(seconds) * 1e3)
     metrics['test_runs'] = len(runs)
     metrics['stride'] = stride
     return metrics
+
+
+def profile_lines(spec, metrics: dict) -> list[str]:
+    """Return the Markdown table of errors along the horizon, hybrid and physics alone."""
+    hybrid, physics = metrics['profile'], metrics['physics_alone']['profile']
+    head = ['after [s]', 'position [m]'] + [f'{s} [{u}]' for s, u in zip(
+        spec.state_names, spec.state_units, strict=True)]
+    lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    for i, seconds in enumerate(hybrid['seconds']):
+        cells = [f'{seconds:g}', _pair(hybrid['position_m'][i], physics['position_m'][i])]
+        cells += [_pair(hybrid['rmse'][s][i], physics['rmse'][s][i]) for s in spec.state_names]
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    return lines
+
+
+def _pair(hybrid, physics) -> str:
+    return f'{hybrid:.4g} ({physics:.4g})'
+
+
+def selection_lines(config: dict) -> list[str]:
+    """Return how the served threshold was chosen on validation (or that it was not)."""
+    chosen = config.get('selection')
+    if not chosen:
+        return ['The served threshold was set by hand (`set_threshold`) or by the training '
+                'config; it was not chosen on validation runs.']
+    lines = [f"Chosen on the validation runs: threshold {chosen['relative_threshold']} "
+             f"({chosen['reason']}). Validation score (sum over states of RMSE / std) of "
+             f"the physics alone: {chosen['physics']['score']:.4g}.", '',
+             '| threshold | validation score | worse than the physics alone at |',
+             '|---|---|---|']
+    for row in chosen['candidates']:
+        worse = ', '.join(row['harms'][:3]) + (' ...' if len(row['harms']) > 3 else '')
+        lines.append(f"| {row['relative_threshold']} | {row['score']:.4g} | "
+                     f"{worse or 'no reported step'} |")
+    return lines
 
 
 def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
@@ -97,7 +141,7 @@ def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
         'CPU cores.',
         '',
         f'## Test metrics ({metrics["n_forecasts"]} forecasts of {metrics["horizon"]} steps, '
-        f'one every {metrics["stride"]} s of {metrics["test_runs"]} test runs, against the '
+        f'one every {metrics["stride"]} samples of {metrics["test_runs"]} test runs, against the '
         'noise-free states, true future controls)',
         '',
         f'Test runs from `{metrics["test_dataset"]["path"]}` (sha256 '
@@ -110,11 +154,19 @@ def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
         + ' | trajectory [m] |',
         '|' + '---|' * (len(states) + 1),
         '| ' + ' | '.join(f'{metrics["rmse"][s]:.4g}' for s in states)
-        + f' | {traj["mean"]:.0f} ± {traj["ci95"]:.0f} |',
+        + f' | {traj["mean"]:.3g} ± {traj["ci95"] or 0:.2g} |',
         '',
         f'Trajectory error: mean distance over the horizon with a 95 % CI over forecasts; '
-        f'{traj["final_mean"]:.0f} m after {metrics["horizon"]} steps. One forecast takes '
+        f'{traj["final_mean"]:.3g} m after {metrics["horizon"]} steps. One forecast takes '
         f'{metrics["latency_ms_p50"]:.1f} ms (p50, compiled engine, this machine).',
+        '',
+        '## Along the horizon (test runs): the hybrid, and in brackets its physics alone',
+        '',
+        *profile_lines(engine.spec, metrics),
+        '',
+        '## The served threshold',
+        '',
+        *selection_lines(config),
         '',
         'Regenerate with `python offline/model_card.py` (see its `--help`).',
     ]
@@ -126,12 +178,17 @@ def main(argv=None) -> int:
     args = parse_args(argv)
     try:
         config = read_header(args.checkpoint)
-        engine = Forecaster.from_checkpoint(args.checkpoint, args.threshold)
         dataset = read_dataset(args.dataset)
+        dataset.vessel.check_compatible(vessel_of(config, args.checkpoint),
+                                        f'checkpoint {args.checkpoint}')
+        engine = Forecaster.from_checkpoint(args.checkpoint, args.threshold)
+        physics = Forecaster.from_checkpoint(args.checkpoint, PHYSICS_ALONE)
+        _, horizon, stride = evaluation_protocol(engine.spec, engine.window, args.horizon,
+                                                 args.stride)
     except (CheckpointError, DatasetError, FileNotFoundError, TypeError, ValueError) as exc:
         print(f'model_card: error: {exc}', file=sys.stderr)
         return 2
-    metrics = evaluate(engine, dataset, args.horizon, args.stride)
+    metrics = evaluate(engine, physics, dataset, horizon, stride)
     metrics['test_dataset'] = {'path': str(args.dataset), 'sha256': dataset_hash(args.dataset)}
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'MODEL_CARD.md').write_text(

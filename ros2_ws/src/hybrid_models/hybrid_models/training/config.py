@@ -14,6 +14,7 @@ from pathlib import Path
 import yaml
 
 import hybrid_models
+from hybrid_models.data import evaluation_protocol
 from vessel_description.resources import data_dir, read_yaml
 
 DEFAULTS: dict = {
@@ -66,6 +67,10 @@ DEFAULTS: dict = {
                                        # the physics fit and the 95 % range: all of
                                        # them up to this many, else a uniform sample
         'progress': True,
+        # Port/starboard mirror images of the training runs as more training runs:
+        # auto when the vessel file declares its mirror image (key mirror: a vessel
+        # symmetric about its centre plane, actuators included), true, or false.
+        'mirror': 'auto',
         # Do no harm (hybrid_models.selection): after training, the served relative
         # threshold is chosen on the validation runs among these (0, the physics alone,
         # always included; none above model.relative_threshold when that is set; null:
@@ -114,22 +119,6 @@ def resolve(cfg: dict) -> dict:
         raise ConfigError('the LSTM baseline has no physical model to teacher-force; '
                           'give it only multistep phases')
     return out
-
-
-def evaluation_protocol(vessel, window: int | None = None, horizon: int | None = None,
-                        stride: int | None = None) -> tuple[int, int, int]:
-    """
-    Window, horizon and stride (samples) of test forecasts; None takes the vessel's.
-
-    Forecasts start every horizon/7.5 samples: 120 for the paper's 900 s at 1 Hz.
-    """
-    window = int(window if window is not None else vessel.window)
-    horizon = int(horizon if horizon is not None else vessel.horizon)
-    stride = int(stride if stride is not None else max(1, round(horizon / 7.5)))
-    if min(window, horizon, stride) < 1:
-        raise ConfigError(f'window, horizon and stride must be at least 1 sample, got '
-                          f'{window}, {horizon}, {stride}')
-    return window, horizon, stride
 
 
 def fill_from_vessel(cfg: dict, vessel) -> dict:

@@ -44,11 +44,34 @@ MODEL_FILE = 'model.safetensors'
 
 
 def dataset_vessel(cfg: dict) -> VehicleSpec:
-    """Return the vessel of the config's dataset, checked against the config's vessel file."""
+    """
+    Return the vessel of the config's dataset, or the config's vessel file when it names one.
+
+    The file must have the dataset's vectors and rate; what else it says (its mirror
+    image, its limits) may be newer than the dataset's copy, and wins.
+    """
     vessel = read_dataset(cfg['dataset']).vessel
     if cfg.get('vessel'):
-        load_vessel(cfg['vessel']).check_compatible(vessel, f'dataset {cfg["dataset"]}')
+        given = load_vessel(cfg['vessel'])
+        given.check_compatible(vessel, f'dataset {cfg["dataset"]}')
+        return given
     return vessel
+
+
+def uses_mirror(setting, spec: VehicleSpec) -> bool:
+    """
+    Tell whether training adds the mirror images of the training runs.
+
+    'auto': when the vessel file declares its mirror image (a symmetric vessel); true:
+    always, refused for a vessel that declares none; false: never.
+    """
+    if setting == 'auto':
+        return spec.mirror is not None
+    if setting is True and spec.mirror is None:
+        spec.mirror_maps()   # raises: the vessel file declares no mirror image
+    if not isinstance(setting, bool):
+        raise ValueError(f'training.mirror must be auto, true or false, got {setting!r}')
+    return setting
 
 
 def check_windows(cfg: dict, spec: VehicleSpec) -> None:
@@ -84,6 +107,7 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'a
     spec = dataset_vessel(cfg)
     cfg = fill_from_vessel(cfg, spec)
     check_windows(cfg, spec)
+    uses_mirror(cfg['training']['mirror'], spec)
     group = join(device)
     try:
         return _train(cfg, spec, Path(out_dir), resume, group)
@@ -124,12 +148,15 @@ def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
     writer = group.local_rank == 0
     if writer:
         cache.mkdir(parents=True, exist_ok=True)
+    mirror = uses_mirror(tcfg['mirror'], spec)
     stores = {split: build_split(ds, split, spec, cache, tcfg['statistics_rows'],
-                                 tcfg['seed'], writer) for split in ('train', 'val')}
+                                 tcfg['seed'], writer, mirror and split == 'train')
+              for split in ('train', 'val')}
     group.barrier()
     base = {'dataset': {'path': str(cfg['dataset']), 'sha256': dataset_hash(cfg['dataset']),
                         'train_runs': [r.run_id for r in stores['train'].runs],
-                        'val_runs': [r.run_id for r in stores['val'].runs]},
+                        'val_runs': [r.run_id for r in stores['val'].runs],
+                        'mirrored': mirror},
             'vehicle': spec.to_dict(), 'training': cfg, 'name': cfg['name']}
     state_norm = stores['train'].state.normalizer()
     control_norm = stores['train'].control.normalizer()

@@ -1,0 +1,151 @@
+r"""
+Compare models over seeds and over folds of whole recordings, each held out once.
+
+    python offline/crossval.py --dataset DIR --out RESULTS --seeds 5 --folds 5 \\
+        --model hybrid=docs/results/real/configs/hybrid_mmg.yaml \\
+        --model lstm=docs/results/real/configs/lstm.yaml
+    ros2 run hybrid_models crossval ...          # the same program, installed
+
+Without --folds the dataset's own split is used (one fold). With --folds K the
+recordings are dealt into K test groups (a seeded shuffle; runs cut from one recording
+stay together), and of the other recordings --val-fraction validate and the rest train,
+so every recording is forecast by models that never saw it. Every model is trained with
+every seed on every fold (resumable: a finished training is kept, a killed one
+continues), --jobs at a time. Test forecasts of all folds are pooled; a row is the mean
+± standard deviation over the seeds. Every distinct physics of the hybrids gets a row,
+and each hybrid seed is checked against its own physics at every reported horizon step.
+
+Writes into --out: report.md, table.md, results.json (every number, per seed and per
+fold), position_error_over_horizon.png, folds/ (the fold views) and runs/ (the
+trainings). Exit codes: 0 done, 1 a training or an input failed, 2 bad arguments.
+"""
+
+import argparse
+from pathlib import Path
+import sys
+import time
+
+import torch
+
+from hybrid_models.checkpoint import CheckpointError
+from hybrid_models.studies.crossval import (
+    ModelPlan,
+    evaluate_plan,
+    harm_lines,
+    make_folds,
+    train_plan,
+    write_results,
+)
+from vessel_datasets.format import DatasetError, read_dataset
+
+PROG = 'crossval'
+
+
+def labelled(text: str) -> tuple[str, str]:
+    """Parse LABEL=VALUE for argparse."""
+    label, sep, value = text.partition('=')
+    if not sep or not label or not value:
+        raise argparse.ArgumentTypeError(f'expected LABEL=VALUE, got {text!r}')
+    return label, value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the command-line parser (the workflow program adds its own options)."""
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--dataset', required=True, type=Path, help='dataset directory')
+    parser.add_argument('--out', required=True, type=Path, help='results directory')
+    add_plan_options(parser)
+    parser.add_argument('--model', action='append', required=True, type=labelled,
+                        metavar='LABEL=CONFIG', help='a model to compare (repeatable)')
+    return parser
+
+
+def add_plan_options(parser: argparse.ArgumentParser) -> None:
+    """Add the options every cross-validated comparison takes."""
+    parser.add_argument('--seeds', type=int, default=5,
+                        help='trainings per model and fold, seeds 0..N-1 (default 5)')
+    parser.add_argument('--folds', type=int,
+                        help="hold each recording out once in K folds (default: the "
+                             "dataset's own split)")
+    parser.add_argument('--val-fraction', type=float, default=0.1,
+                        help="share of a fold's other recordings that validate (0.1)")
+    parser.add_argument('--fold-seed', type=int, default=0,
+                        help='seed of the shuffle that deals recordings into folds (0)')
+    parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
+                        help='config override for every training (repeatable)')
+    parser.add_argument('--jobs', type=int, default=2, help='trainings at a time (2)')
+    parser.add_argument('--threads', type=int, default=2, help='cores to use in total (2)')
+    for name, what in (('window', 'initialization window'), ('horizon', 'forecast length'),
+                       ('stride', 'samples between forecast starts')):
+        parser.add_argument(f'--{name}', type=int,
+                            help=f"{what} of test forecasts (samples; default: the vessel's)")
+
+
+def run_plan(args, models: list[ModelPlan], folds, say) -> dict | None:
+    """Train and evaluate a plan; return the results, None when a training failed."""
+    seeds = list(range(args.seeds))
+    trainings = train_plan(models, folds, seeds, args.out, args.jobs, args.threads, say)
+    failed = [t for t in trainings if t['status'] not in ('ok', 'kept')]
+    if failed:
+        print(f"{PROG}: error: {failed[0]['label']}: {failed[0]['status']}", file=sys.stderr)
+        return None
+    say('forecasting the held-out runs')
+    result = evaluate_plan(models, folds, seeds, args.out, args.window, args.horizon,
+                           args.stride)
+    result['trainings'] = trainings
+    return result
+
+
+def report_text(title: str, result: dict, table: str, intro: list[str]) -> str:
+    """Return report.md: what was compared how, the table, the do-no-harm check."""
+    p = result['protocol']
+    folds = ("the dataset's own split" if p['folds'] == 1 else
+             f"{p['folds']} folds, every recording held out once")
+    lines = [f'# {title}', '', *intro,
+             f"Test forecasts: {p['n_forecasts']} of {p['horizon']} steps (one every "
+             f"{p['stride']} samples after a {p['window']}-sample window), pooled over "
+             f"{folds}; {len(p['seeds'])} seeds per model (mean ± sd over seeds).", '',
+             table, '## Do no harm on the held-out runs', ''] + harm_lines(result['rows'])
+    return '\n'.join(lines + ['', 'Every number: results.json; figure: '
+                              'position_error_over_horizon.png.', ''])
+
+
+def main(argv=None) -> int:
+    """Parse arguments, train, evaluate, report; return the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    labels = [label for label, _ in args.model]
+    if len(set(labels)) != len(labels) or args.seeds < 1:
+        parser.error(f'give distinct model labels and --seeds >= 1 (labels {labels})')
+    start = time.monotonic()
+
+    def say(message: str) -> None:
+        print(f'[{(time.monotonic() - start) / 60:5.1f} min] {message}', file=sys.stderr,
+              flush=True)
+
+    torch.set_num_threads(args.threads)
+    try:
+        dataset = read_dataset(args.dataset)
+        spec = dataset.vessel
+        folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction)
+        models = [ModelPlan(label, Path(config).resolve(), args.set)
+                  for label, config in args.model]
+        result = run_plan(args, models, folds, say)
+    except (DatasetError, CheckpointError, ValueError) as exc:
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
+        return 1
+    if result is None:
+        return 1
+    write_results(args.out, result, spec)
+    table = (args.out / 'table.md').read_text()
+    (args.out / 'report.md').write_text(report_text(
+        f'Cross-validated comparison on {spec.name}', result, table,
+        [f'Dataset `{args.dataset}`; models: '
+         + ', '.join(f'{label} (`{config}`)' for label, config in args.model) + '.', '']))
+    print(table)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,230 @@
+"""
+Cross-validated, seeded comparisons of models on whole recordings.
+
+A plan is folds x models x seeds. With ``folds=K`` every recording is in the test set of
+exactly one fold (K groups of a seeded shuffle of the recordings; runs cut from one
+recording stay together), a share of the others validates and the rest trains; with
+``folds=None`` the dataset's own split is the one fold. A fold is a view of the dataset
+(``vessel_datasets.format.resplit``): nothing is copied.
+
+``train_plan`` trains every (model, fold, seed) as a resumable subprocess
+(``training.jobs``), a few at a time. ``evaluate_plan`` forecasts each fold's test runs
+with that fold's models and pools the folds, so every figure is over all held-out runs;
+a model's row is the mean ± sd over its seeds (``evaluation.seed_row``), every distinct
+physics of the hybrids gets a row of its own, and each hybrid seed is checked against
+its own physics at every reported horizon step (``selection.harms``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass, field
+import json
+from pathlib import Path
+import sys
+
+import numpy as np
+
+from hybrid_models import report
+from hybrid_models.checkpoint import load_model
+from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
+from hybrid_models.evaluation import PhysicsOnly, physics_identity, seed_row
+from hybrid_models.metrics import StepErrors, forecast_metrics
+from hybrid_models.models import predict
+from hybrid_models.nets import HybridModel
+from hybrid_models.selection import harms
+from hybrid_models.training.jobs import train_job
+from hybrid_models.training.train import MODEL_FILE
+from vessel_datasets.format import Dataset, read_dataset, resplit
+
+
+@dataclass(frozen=True)
+class Fold:
+    """One fold: its dataset view and the runs of each split."""
+
+    index: int
+    path: Path
+    train: tuple[str, ...]
+    val: tuple[str, ...]
+    test: tuple[str, ...]
+
+    def describe(self) -> dict:
+        """Return the fold as JSON-ready data."""
+        return {'index': self.index, 'path': str(self.path), 'train': list(self.train),
+                'val': list(self.val), 'test': list(self.test)}
+
+
+@dataclass(frozen=True)
+class ModelPlan:
+    """A model to train on every fold: a config and its overrides (fixed, or per fold)."""
+
+    label: str
+    config: Path
+    overrides: Sequence[str] | Callable[[Fold], Sequence[str]] = field(default=())
+
+    def overrides_for(self, fold: Fold) -> list[str]:
+        """Return the config overrides of this model on ``fold``."""
+        return list(self.overrides(fold) if callable(self.overrides) else self.overrides)
+
+
+def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
+               val_fraction: float = 0.1) -> list[Fold]:
+    """
+    Write the fold views under ``out/folds`` and return them.
+
+    ``folds`` None keeps the dataset's split (one fold). Otherwise recordings are
+    shuffled with ``seed`` and dealt into ``folds`` test groups; of each fold's other
+    recordings, ``val_fraction`` (at least one) validate and the rest train.
+    """
+    if folds is None:
+        splits = [{name: dataset.run_ids(name) for name in ('train', 'val', 'test')}]
+    else:
+        recordings = dataset.recordings()
+        if not 2 <= folds <= len(recordings):
+            raise ValueError(f'folds must be between 2 and the {len(recordings)} '
+                             f'recordings of {dataset.root}, got {folds}')
+        if not 0 < val_fraction < 1:
+            raise ValueError(f'val_fraction must be in (0, 1), got {val_fraction}')
+        names = sorted(recordings)
+        order = [names[i] for i in np.random.default_rng(seed).permutation(len(names))]
+        groups = [list(g) for g in np.array_split(np.asarray(order, dtype=object), folds)]
+        splits = []
+        for k, test in enumerate(groups):
+            rest = [r for r in order if r not in test]
+            rest = [rest[i] for i in np.random.default_rng([seed, k]).permutation(len(rest))]
+            n_val = max(1, round(val_fraction * len(rest)))
+            runs = {name: sorted(run for rec in recs for run in recordings[rec])
+                    for name, recs in (('test', test), ('val', rest[:n_val]),
+                                       ('train', rest[n_val:]))}
+            splits.append(runs)
+    out_folds = []
+    for k, split in enumerate(splits):
+        path = Path(out) / 'folds' / f'fold{k}'
+        note = (f'fold {k} of {folds} (recordings shuffled with seed {seed})' if folds
+                else "the dataset's own split")
+        resplit(dataset, path, split, note)
+        out_folds.append(Fold(k, path, *(tuple(split[s]) for s in ('train', 'val', 'test'))))
+    return out_folds
+
+
+def run_dir(out: Path, label: str, fold: Fold, seed: int) -> Path:
+    """Return where a (model, fold, seed) training writes."""
+    return Path(out) / 'runs' / label / f'fold{fold.index}' / f'seed{seed}'
+
+
+def train_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
+               out: Path, jobs: int = 2, threads: int = 2,
+               say: Callable[[str], None] = lambda m: print(m, file=sys.stderr)) -> list[dict]:
+    """Train every (model, fold, seed), ``jobs`` at a time; return the trainings' summaries."""
+    per_job = max(1, threads // max(jobs, 1))
+    plan = [(f'{m.label}/fold{f.index}/seed{s}', m.config,
+             m.overrides_for(f) + [f'dataset={f.path.resolve()}', f'training.seed={s}',
+                                   f'training.threads={per_job}'], run_dir(out, m.label, f, s))
+            for f in folds for m in models for s in seeds]
+    results = []
+    with ThreadPoolExecutor(max(jobs, 1)) as pool:
+        for done, fut in enumerate(as_completed([pool.submit(train_job, *job)
+                                                 for job in plan]), 1):
+            res = fut.result()
+            results.append(res)
+            say(f"trained {done}/{len(plan)}: {res['label']} {res['status']}")
+    return results
+
+
+def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
+                  out: Path, window: int | None = None, horizon: int | None = None,
+                  stride: int | None = None) -> dict:
+    """
+    Forecast every fold's test runs with its models; pool the folds; return the results.
+
+    The result holds the table rows (models, then one per distinct physics), the mean
+    position error at every horizon step per model and seed (for the figure), the
+    protocol and the folds.
+    """
+    spec = read_dataset(folds[0].path).vessel
+    window, horizon, stride = evaluation_protocol(spec, window, horizon, stride)
+    preds: dict[tuple[str, int], list] = {}
+    physics: dict[tuple[str, int], list] = {}   # (label, seed) -> per fold (fp, name, pred)
+    targets, n_forecasts = [], 0
+    for fold in folds:
+        runs = load_runs(fold.path, 'test', spec)
+        windows = forecast_windows(runs, window, horizon, stride, 'true')
+        targets.append(windows.z_target)
+        n_forecasts += len(windows)
+        for m in models:
+            for s in seeds:
+                model, _ = load_model(run_dir(out, m.label, fold, s) / MODEL_FILE)
+                preds.setdefault((m.label, s), []).append(predict(model, windows))
+                if isinstance(model, HybridModel):
+                    fp, name = physics_identity(model.physical)
+                    physics.setdefault((m.label, s), []).append(
+                        (fp, name, lambda w=windows, p=model.physical: predict(PhysicsOnly(p),
+                                                                              w)))
+    true = np.concatenate(targets)
+    rows, curves, physics_rows = [], {}, {}
+    for m in models:
+        metrics = []
+        for s in seeds:
+            pred = np.concatenate(preds[(m.label, s)])
+            metrics.append(forecast_metrics(pred, true, spec))
+            curves.setdefault(m.label, []).append(_position_curve(pred, true, spec))
+        row = seed_row(m.label, metrics) if len(seeds) > 1 else {
+            'label': m.label, 'metrics': metrics[0]}
+        row['per_seed_metrics'] = metrics
+        if (m.label, seeds[0]) in physics:
+            own = [_physics_pooled(physics[(m.label, s)], true, spec, physics_rows, curves)
+                   for s in seeds]
+            row['physics'] = sorted({p['label'] for p in own})
+            row['harms_vs_physics'] = [harms(mm['profile'], p['metrics']['profile'])
+                                       for mm, p in zip(metrics, own, strict=True)]
+        rows.append(row)
+    rows += list(physics_rows.values())
+    return {'protocol': {'window': window, 'horizon': horizon, 'stride': stride,
+                         'target': 'true', 'n_forecasts': n_forecasts,
+                         'seeds': list(seeds), 'folds': len(folds)},
+            'folds': [f.describe() for f in folds], 'rows': rows,
+            'position_error_curves': curves}
+
+
+def _position_curve(pred: np.ndarray, true: np.ndarray, spec) -> list[float]:
+    errors = StepErrors.of(pred, true, spec)
+    return (errors.position / errors.count).tolist()
+
+
+def _physics_pooled(per_fold: list, true: np.ndarray, spec, physics_rows: dict,
+                    curves: dict) -> dict:
+    """Return the pooled row of one seed's physics (per fold), made once per physics."""
+    key = tuple(fp for fp, _, _ in per_fold)
+    if key not in physics_rows:
+        name = per_fold[0][1]
+        taken = {row['label'] for row in physics_rows.values()}
+        label = name if name not in taken else f'{name} [{key[0][:6]}]'
+        pred = np.concatenate([forecast() for _, _, forecast in per_fold])
+        physics_rows[key] = {'label': label, 'metrics': forecast_metrics(pred, true, spec),
+                             'fingerprints': list(key)}
+        curves[label] = [_position_curve(pred, true, spec)]
+    return physics_rows[key]
+
+
+def write_results(out: Path, result: dict, spec) -> None:
+    """Write results.json, table.md and position_error_over_horizon.png into ``out``."""
+    out = Path(out)
+    (out / 'results.json').write_text(json.dumps(result, indent=2))
+    (out / 'table.md').write_text(report.markdown_table(result['rows'], spec))
+    report.plot_position_curves(out / 'position_error_over_horizon.png', spec,
+                                result['position_error_curves'])
+
+
+def harm_lines(rows: list[dict]) -> list[str]:
+    """Return one Markdown line per hybrid: in how many seeds it is worse than its physics."""
+    lines = []
+    for row in rows:
+        if 'harms_vs_physics' not in row:
+            continue
+        worse = [h for h in row['harms_vs_physics'] if h]
+        verdict = ('not worse than its physics at any reported step in any seed' if not worse
+                   else f'worse than its physics in {len(worse)} of '
+                        f'{len(row["harms_vs_physics"])} seeds ({"; ".join(worse[0][:3])} ...)')
+        lines.append(f'- {row["label"]} ({", ".join(row["physics"])}): {verdict}')
+    return lines

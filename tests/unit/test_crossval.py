@@ -1,0 +1,114 @@
+"""Seeds and folds of whole recordings: every recording held out once, rows over seeds."""
+
+import json
+from pathlib import Path
+import shutil
+
+import pytest
+
+from hybrid_models.cli import crossval
+from hybrid_models.studies.crossval import make_folds
+from hybrid_models.toy import write_toy_dataset
+from vessel_datasets.format import DatasetError, read_dataset, resplit
+
+ROOT = Path(__file__).resolve().parents[2]
+SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
+SHORT = ['training.progress=false', 'training.phases=[{kind: teacher, max_epochs: 1, '
+         'patience: 1, lr: 0.005}, {kind: multistep, max_epochs: 1, patience: 1, lr: 0.003}]']
+
+
+@pytest.fixture(scope='module')
+def toy(tmp_path_factory):
+    return write_toy_dataset(tmp_path_factory.mktemp('toy'), n_runs=6, n_samples=260)
+
+
+def test_a_view_resplits_without_copying_and_refuses_unknown_runs(toy, tmp_path):
+    ds = read_dataset(toy)
+    ids = ds.run_ids()
+    view = resplit(ds, tmp_path / 'view', {'train': ids[:4], 'test': ids[4:5]}, 'a test')
+    assert view.run_ids('test') == ids[4:5] and view.run_ids('val') == []
+    assert (tmp_path / 'view' / 'runs' / f'{ids[0]}.parquet').is_symlink()
+    assert view.load(ids[0]).equals(ds.load(ids[0]))
+    assert [r['split'] for r in view.manifest['runs']].count('unused') == 1
+    with pytest.raises(DatasetError, match='no runs'):
+        resplit(ds, tmp_path / 'bad', {'train': ['nope']})
+
+
+def test_folds_hold_every_recording_out_once_and_keep_recordings_whole(toy, tmp_path):
+    toy = Path(shutil.copytree(toy, tmp_path / 'toy'))
+    manifest = json.loads((toy / 'manifest.json').read_text())
+    # Two runs cut from one recording: they must share a fold.
+    manifest['runs'][0]['source'] = manifest['runs'][1]['source'] = {'bag': 'same.mcap'}
+    (toy / 'manifest.json').write_text(json.dumps(manifest))
+    ds = read_dataset(toy)
+    assert len(ds.recordings()) == 5
+    folds = make_folds(ds, tmp_path, 3, seed=1)
+    tested = [r for f in folds for r in f.test]
+    assert sorted(tested) == sorted(ds.run_ids())
+    first, second = manifest['runs'][0]['id'], manifest['runs'][1]['id']
+    for f in folds:
+        assert not set(f.test) & (set(f.train) | set(f.val)) and f.val
+        assert (first in f.test) == (second in f.test)
+        assert (first in f.train) == (second in f.train)
+    with pytest.raises(ValueError, match='folds must be between 2 and the 5'):
+        make_folds(ds, tmp_path, 6)
+
+
+def test_crossval_trains_every_seed_and_fold_and_pools_their_forecasts(toy, tmp_path):
+    out = tmp_path / 'cv'
+    args = ['--dataset', str(toy), '--out', str(out), '--seeds', '2', '--folds', '2',
+            '--model', f'hybrid={SMOKE}', '--horizon', '100', '--window', '20',
+            '--stride', '60', '--threads', '1', '--jobs', '1']
+    assert crossval.main(args + sum((['--set', s] for s in SHORT), [])) == 0
+    result = json.loads((out / 'results.json').read_text())
+    assert result['protocol']['folds'] == 2 and result['protocol']['seeds'] == [0, 1]
+    hybrid, physics = result['rows']
+    assert hybrid['seeds'] == 2 and len(hybrid['per_seed']) == 2
+    assert hybrid['physics'] == [physics['label']] == ['lin physics']
+    assert len(hybrid['harms_vs_physics']) == 2
+    tested = [r for f in result['folds'] for r in f['test']]
+    assert sorted(tested) == sorted(read_dataset(toy).run_ids())
+    assert result['protocol']['n_forecasts'] == physics['metrics']['n_forecasts']
+    for name in ('report.md', 'table.md', 'position_error_over_horizon.png'):
+        assert (out / name).stat().st_size > 0
+    assert 'Do no harm' in (out / 'report.md').read_text()
+    # A second call keeps the finished trainings instead of training again.
+    assert crossval.main(args + sum((['--set', s] for s in SHORT), [])) == 0
+    trained = json.loads((out / 'results.json').read_text())['trainings']
+    assert {t['status'] for t in trained} == {'kept'}
+
+
+def physics_file(tmp_path, name, terms):
+    path = tmp_path / f'{name}.yaml'
+    path.write_text(json.dumps({'format': 'vessel-physics/1', 'vessel': 'nominal_vessel.yaml',
+                                'terms': terms}))
+    return path
+
+
+def test_evaluate_gives_each_distinct_physics_its_row_and_seeds_one_row(toy, tmp_path):
+    from hybrid_models.cli import evaluate
+    from hybrid_models.training import load_config, train
+    from vessel_physics.terms import PRO_TERMS, SIMULATOR_TERMS
+    files = {'nominal': physics_file(tmp_path, 'nominal', list(SIMULATOR_TERMS)),
+             'reduced': physics_file(tmp_path, 'reduced', list(PRO_TERMS))}
+    runs = []
+    for label, path, seed in (('a', files['nominal'], 0), ('b', files['reduced'], 0),
+                              ('b', files['reduced'], 1)):
+        out = tmp_path / f'{label}{seed}'
+        train(load_config(SMOKE, [f'dataset={toy}', 'model.physical.kind=physics',
+                                  f'model.physical.physics={path}', 'model.physical.substeps=1',
+                                  f'training.seed={seed}', *SHORT]), out)
+        runs.append((label, out))
+    results = tmp_path / 'results'
+    assert evaluate.main([str(out) for _, out in runs] + [
+        '--labels', *[label for label, _ in runs], '--dataset', str(toy), '--out',
+        str(results), '--horizon', '60', '--window', '20', '--stride', '60',
+        '--physics-only', '--threads', '1']) == 0
+    rows = json.loads((results / 'results.json').read_text())['rows']
+    labels = [row['label'] for row in rows]
+    assert labels == ['a', 'physics (nominal)', 'b', 'physics (reduced)']
+    assert rows[2]['seeds'] == 2 and len(rows[2]['per_seed']) == 2
+    assert rows[0]['physics'] == ['physics (nominal)'] and len(rows[2]['harms_vs_physics']) == 2
+    assert rows[1]['metrics']['rmse'] != rows[3]['metrics']['rmse']
+    table = (results / 'table.md').read_text()
+    assert '| b |' in table and ' ± ' in table.split('| b |')[1].splitlines()[0]
