@@ -149,7 +149,7 @@ def test_buffers_keep_only_what_a_window_needs():
 def test_the_window_equals_offline_conversion_of_the_same_messages(tmp_path):
     """One preprocessing core: the online window matches the converter's dataset."""
     from vessel_datasets import synthetic
-    from vessel_datasets.convert import bag_to_runs
+    from vessel_datasets.readers.bags import bag_to_runs
 
     traj = synthetic.demo_trajectory(400, rate_hz=5.0)
     (table,) = bag_to_runs(synthetic.write_bag(tmp_path / 'bag', traj),
