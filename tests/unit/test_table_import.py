@@ -23,10 +23,10 @@ from vessel_datasets.bag_source import sha256
 from vessel_datasets.readers.tables import TableRecordings
 from vessel_description import parse_vessel
 
+from .tracks import KNOT, RATE_HZ, csv_table, trajectory
+
 REPO = Path(__file__).resolve().parents[2]
-KNOT = 1852.0 / 3600.0
 DEG = math.pi / 180.0
-RATE_HZ = 20.0
 VESSEL_DATA = {
     'name': 'tank_model', 'rate_hz': RATE_HZ, 'window_s': 1.0, 'horizon_s': 5.0,
     'states': ['u', 'v', 'r'],
@@ -49,38 +49,6 @@ CSV_MAP = {
     'actuators': {'n': {'column': 'rpm', 'unit': 'rpm'},
                   'delta': {'column': 'rudder_deg', 'unit': 'deg', 'sign': -1}},
 }
-
-
-def trajectory(duration_s=60.0, rate_hz=RATE_HZ):
-    """Return a turning run in model units: psi spans 23..195 deg, so it wraps at 180."""
-    fine = 100  # position integrated on a 100x finer grid by the trapezoid rule
-    tf = np.arange(int(round(duration_s * rate_hz * fine)) + 1) / (rate_hz * fine)
-    u = 1.2 + 0.2 * np.sin(2 * math.pi * tf / 30)
-    v = 0.08 * np.sin(2 * math.pi * tf / 20 + 1.0)
-    r = 0.05 + 0.15 * np.sin(2 * math.pi * tf / 40)
-    psi = 0.4 + 0.05 * tf + 0.15 * 40 / (2 * math.pi) * (1 - np.cos(2 * math.pi * tf / 40))
-    north_dot = u * np.cos(psi) - v * np.sin(psi)
-    east_dot = u * np.sin(psi) + v * np.cos(psi)
-    dt = tf[1] - tf[0]
-    x = np.concatenate([[0.0], np.cumsum(0.5 * dt * (north_dot[1:] + north_dot[:-1]))])
-    y = np.concatenate([[0.0], np.cumsum(0.5 * dt * (east_dot[1:] + east_dot[:-1]))])
-    every = slice(None, None, fine)
-    t = np.arange(len(tf[every])) / rate_hz
-    n = np.where(t < duration_s / 2, 60.0, 70.0)
-    delta = 0.2 * np.sign(np.sin(2 * math.pi * t / 20 + 0.1))
-    return {'t': t, 'u': u[every], 'v': v[every], 'r': r[every], 'psi': psi[every],
-            'x': x[every] + 5.0, 'y': y[every] - 3.0, 'north_dot': north_dot[every],
-            'east_dot': east_dot[every], 'n': n, 'delta': delta}
-
-
-def csv_table(truth):
-    """Return the trajectory as a logger's table (degrees, knots, rpm, earth frame)."""
-    heading = (np.degrees(truth['psi']) + 180.0) % 360.0 - 180.0  # wrapped, as logged
-    return pd.DataFrame({
-        'time': truth['t'], 'vn_kn': truth['north_dot'] / KNOT,
-        've_kn': truth['east_dot'] / KNOT, 'r_deg': np.degrees(truth['r']),
-        'hdg_deg': heading, 'north_m': truth['x'], 'east_m': truth['y'],
-        'rpm': truth['n'] * 60 / (2 * math.pi), 'rudder_deg': -np.degrees(truth['delta'])})
 
 
 def write_csv(path, table):
