@@ -12,6 +12,8 @@ own FMT messages, multipliers applied: degrees, m/s); each message is timed by i
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
+import contextlib
+import io
 import os
 import re
 from typing import Any
@@ -43,6 +45,18 @@ class DataFlashRecordings:
     def read(self, recording: Recording, topic_map: TopicMap, opts, report: dict,
              progress: Callable[[int], None] | None) -> tuple[list[Part], TopicMap]:
         """Read the mapped messages of one log; raise ConversionError (one line)."""
+        # pymavlink prints what it skips: keep it off stdout (the dataset path's) and
+        # report it as a loss.
+        said = io.StringIO()
+        with contextlib.redirect_stdout(said):
+            parts, used = self._read(recording, topic_map, report, progress)
+        skipped = [line for line in said.getvalue().splitlines() if line.startswith('Skipped')]
+        if skipped:
+            report['losses'].append(f'{recording.path}: pymavlink skipped {len(skipped)} '
+                                    f'damaged stretch(es) of bytes ({skipped[0]})')
+        return parts, used
+
+    def _read(self, recording, topic_map, report, progress):
         from pymavlink.DFReader import DFReader_binary
         try:
             log = DFReader_binary(str(recording.path), zero_time_base=True)
