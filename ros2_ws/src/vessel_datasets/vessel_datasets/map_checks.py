@@ -385,41 +385,52 @@ def _regression(stats: Mapping[str, float]) -> tuple[float, float]:
     return slope, corr
 
 
-def _velocity(stats: dict, labels: Mapping[str, str]) -> Check:
-    name = 'velocity vs d(position)/dt'
+def _judge_slope(name: str, stats: dict, floor: float, floor_text: str, explain
+                 ) -> Check:
+    """
+    Judge a regression through the origin: slope 1 +- SLOPE_TOL, corr >= MIN_CORR.
+
+    Skipped when the reference's rms is under ``floor`` (``floor_text`` says what); a
+    failure asks ``explain(slope, corr)`` for (suspect, why).
+    """
     expected = f'slope 1 +- {SLOPE_TOL:g}, corr >= {MIN_CORR:g}'
-    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < MIN_SPEED:
-        return Check(name, None, expected, True, None,
-                     f'skipped: the vessel moves slower than {MIN_SPEED:g} m/s', stats)
+    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < floor:
+        return Check(name, None, expected, True, None, f'skipped: {floor_text}', stats)
     slope, corr = _regression(stats)
     figures = f'slope {slope:.3f}, corr {corr:.3f}'
     if abs(slope - 1) <= SLOPE_TOL and corr >= MIN_CORR:
         return Check(name, slope, expected, True, None, f'{figures} -> ok', stats)
-    suspect, why = _explain(slope, corr, 'velocity', 'speed', 'position', 'length', labels)
-    if why is None:
-        suspect = f'{labels["velocity"]}, {labels["position"]}'
-        why = (f'velocity and position disagree: velocity frame or axes, position frame '
-               f'(ned/enu) or heading wrong ({suspect}, {labels["heading"]})')
+    suspect, why = explain(slope, corr)
     return Check(name, slope, expected, False, suspect, f'{figures} -> {why}', stats)
 
 
+def _velocity(stats: dict, labels: Mapping[str, str]) -> Check:
+    def explain(slope, corr):
+        suspect, why = _explain(slope, corr, 'velocity', 'speed', 'position', 'length',
+                                labels)
+        if why is None:
+            suspect = f'{labels["velocity"]}, {labels["position"]}'
+            why = (f'velocity and position disagree: velocity frame or axes, position '
+                   f'frame (ned/enu) or heading wrong ({suspect}, {labels["heading"]})')
+        return suspect, why
+
+    return _judge_slope('velocity vs d(position)/dt', stats, MIN_SPEED,
+                        f'the vessel moves slower than {MIN_SPEED:g} m/s', explain)
+
+
 def _speed_over_ground(stats: dict, labels: Mapping[str, str]) -> Check:
-    name = 'speed over ground vs the track'
-    expected = f'slope 1 +- {SLOPE_TOL:g}, corr >= {MIN_CORR:g}'
-    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < MIN_SPEED:
-        return Check(name, None, expected, True, None,
-                     f'skipped: the vessel moves slower than {MIN_SPEED:g} m/s', stats)
-    slope, corr = _regression(stats)
-    figures = f'slope {slope:.3f}, corr {corr:.3f}'
-    if abs(slope - 1) <= SLOPE_TOL and corr >= MIN_CORR:
-        return Check(name, slope, expected, True, None, f'{figures} -> ok', stats)
     label = labels['speed_over_ground']
-    # The track's speed is noisier than a receiver's: name a slip within 10 %.
-    found = [what for ratio, what in UNIT_SLIPS['speed'].items()
-             if abs(slope / ratio - 1) <= 0.1]
-    why = (f'speed over ground looks like {" or ".join(found)} (map entry {label})' if found
-           else f'speed over ground does not follow the track ({label})')
-    return Check(name, slope, expected, False, label, f'{figures} -> {why}', stats)
+
+    def explain(slope, corr):
+        # The track's speed is noisier than a receiver's: name a slip within 10 %.
+        found = [what for ratio, what in UNIT_SLIPS['speed'].items()
+                 if abs(slope / ratio - 1) <= 0.1]
+        return label, (f'speed over ground looks like {" or ".join(found)} (map entry '
+                       f'{label})' if found else
+                       f'speed over ground does not follow the track ({label})')
+
+    return _judge_slope('speed over ground vs the track', stats, MIN_SPEED,
+                        f'the vessel moves slower than {MIN_SPEED:g} m/s', explain)
 
 
 def _course(stats: dict, labels: Mapping[str, str]) -> Check:
@@ -529,23 +540,17 @@ def _moving(stats: Mapping[str, float]) -> bool:
 
 
 def _rate(rate: str, angle: str, stats: dict, labels: Mapping[str, str]) -> Check:
-    name = f'{rate} vs d({angle})/dt'
-    stats = {**stats, 'rate': rate, 'angle': angle}
-    expected = f'slope 1 +- {SLOPE_TOL:g}, corr >= {MIN_CORR:g}'
-    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < MIN_RATE:
-        return Check(name, None, expected, True, None,
-                     f'skipped: the {angle} changes slower than '
-                     f'{math.degrees(MIN_RATE):g} deg/s', stats)
-    slope, corr = _regression(stats)
-    figures = f'slope {slope:.3f}, corr {corr:.3f}'
-    if abs(slope - 1) <= SLOPE_TOL and corr >= MIN_CORR:
-        return Check(name, slope, expected, True, None, f'{figures} -> ok', stats)
-    suspect, why = _explain(slope, corr, rate, 'rate', angle, 'angle', labels)
-    if why is None:
-        suspect = labels[rate]
-        why = (f'{rate} does not follow the {angle}: wrong column for {rate} or {angle} '
-               f'({labels[rate]}, {labels[angle]})')
-    return Check(name, slope, expected, False, suspect, f'{figures} -> {why}', stats)
+    def explain(slope, corr):
+        suspect, why = _explain(slope, corr, rate, 'rate', angle, 'angle', labels)
+        if why is None:
+            suspect = labels[rate]
+            why = (f'{rate} does not follow the {angle}: wrong column for {rate} or '
+                   f'{angle} ({labels[rate]}, {labels[angle]})')
+        return suspect, why
+
+    return _judge_slope(f'{rate} vs d({angle})/dt', {**stats, 'rate': rate, 'angle': angle},
+                        MIN_RATE, f'the {angle} changes slower than '
+                        f'{math.degrees(MIN_RATE):g} deg/s', explain)
 
 
 def _explain(slope: float, corr: float, a: str, a_kind: str, b: str, b_kind: str,
