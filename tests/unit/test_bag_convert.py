@@ -17,9 +17,10 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from vessel_datasets import bag_to_dataset, synthetic
 from vessel_datasets import format as fmt
-from vessel_datasets.bag_source import find_bags, sha256
+from vessel_datasets.bag_source import find_bags
 from vessel_datasets.quantities import local_projection
 from vessel_datasets.readers.bags import bag_to_runs, convert_bag
+from vessel_datasets.sources import sha256
 from vessel_datasets.topic_map import parse_topic_map, topic_map_for
 from vessel_description import load_vessel
 from vessel_physics import frames

@@ -19,8 +19,8 @@ import yaml
 from vessel_datasets import column_map as columns
 from vessel_datasets import format as fmt
 from vessel_datasets import map_checks, pipeline, table_to_dataset
-from vessel_datasets.bag_source import sha256
 from vessel_datasets.readers.tables import TableRecordings
+from vessel_datasets.sources import sha256
 from vessel_description import parse_vessel
 
 from .tracks import KNOT, RATE_HZ, csv_table, trajectory

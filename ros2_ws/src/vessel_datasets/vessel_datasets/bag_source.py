@@ -22,8 +22,6 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
-from datetime import UTC, datetime
-import hashlib
 import importlib.util
 from io import BytesIO
 import os
@@ -49,7 +47,7 @@ from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_
 from rosbags.typesys.store import Nodetype, Typestore
 import yaml
 
-from .sources import Recording, RecordingError, unique_names
+from .sources import Recording, RecordingError, format_ns, unique_names
 
 STORAGE_SUFFIXES = ('.mcap', '.db3')
 METADATA = 'metadata.yaml'
@@ -185,20 +183,6 @@ def _directory_bag(path: Path) -> Bag:
     bag.files += extra
     bag.files.sort(key=_split_index)
     return bag
-
-
-def sha256(path: Path, block: int = 1 << 20) -> str:
-    """SHA-256 of a file's bytes, hex."""
-    digest = hashlib.sha256()
-    with path.open('rb') as f:
-        while chunk := f.read(block):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-def format_ns(ns: int) -> str:
-    """Format a log time (ns since the epoch) as ISO 8601 UTC, to the millisecond."""
-    return datetime.fromtimestamp(ns / 1e9, tz=UTC).isoformat(timespec='milliseconds')
 
 
 @dataclass

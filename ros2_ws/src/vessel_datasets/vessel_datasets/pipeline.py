@@ -43,7 +43,6 @@ from vessel_description.resources import data_dir, read_yaml
 
 from . import format as fmt
 from . import map_checks, resolution, spikes, track
-from .bag_source import format_ns, sha256
 from .quantities import (
     channel_delays,
     channel_methods,
@@ -53,7 +52,15 @@ from .quantities import (
     to_columns,
 )
 from .resample import period_ns, plan_runs, sample
-from .sources import ConversionError, Reader, Recording, RecordingError, unique_names
+from .sources import (
+    ConversionError,
+    Reader,
+    Recording,
+    RecordingError,
+    format_ns,
+    sha256,
+    unique_names,
+)
 from .topic_map import TopicMap
 
 PROGRESS_POLL_S = 0.2  # how often the parent forwards the workers' progress

@@ -24,6 +24,8 @@ from __future__ import annotations
 from collections import Counter
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
+from datetime import UTC, datetime
+import hashlib
 import os
 from pathlib import Path
 import re
@@ -168,3 +170,17 @@ def from_arrays(arrays: Mapping[str, tuple[np.ndarray, Mapping[str, np.ndarray]]
                                       f'its fields are: {", ".join(fields)}')
         out.append(samples(topic, t_ns, fields, leaves, topic_map, report))
     return out
+
+
+def sha256(path: Path, block: int = 1 << 20) -> str:
+    """SHA-256 of a file's bytes, hex."""
+    digest = hashlib.sha256()
+    with path.open('rb') as f:
+        while chunk := f.read(block):
+            digest.update(chunk)
+    return digest.hexdigest()
+
+
+def format_ns(ns: int) -> str:
+    """Format a log time (ns since the epoch) as ISO 8601 UTC, to the millisecond."""
+    return datetime.fromtimestamp(ns / 1e9, tz=UTC).isoformat(timespec='milliseconds')
