@@ -155,7 +155,7 @@ def load_mmg_runs(path: str | Path, params_file: str | Path | None = None):
         nominal = mmg.load_mmg(file, vessel.length_m, f'vessel {vessel.name!r}')
     except ConfigError as exc:
         raise RecordingsError(str(exc)) from None
-    return vessel, nominal, str(file), runs
+    return vessel, nominal, mmg.display_name(file), runs
 
 
 def uses_mmg(recordings: Sequence[str | Path], physics: str | Path | None) -> bool:

@@ -209,6 +209,15 @@ def find_params_file(name: str | Path, base: Path | None = None) -> Path:
                       f'{", ".join(str(c.parent) for c in candidates)})')
 
 
+def display_name(path: str | Path) -> str:
+    """Name a parameter file for a report: packaged ones by package, others as given."""
+    path = Path(path)
+    try:
+        return f'vessel_physics/config/{path.resolve().relative_to(config_dir().resolve())}'
+    except ValueError:
+        return str(path)
+
+
 def load_mmg(path: str | Path, length_m: float | None = None,
              vessel: str = 'the vessel') -> MmgParams:
     """
