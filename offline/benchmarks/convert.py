@@ -4,7 +4,7 @@ Bag-to-dataset conversion throughput against a bare rosbags pass, in the same ru
 A synthetic recording of the simulator's three topics (default: 96 hours at 1 Hz,
 1,036,800 messages, the paper-sized fleet recording) is written once; then the same
 messages are read and deserialized by a bare rosbags loop (the floor any converter
-built on rosbags pays) and converted by ``vessel_datasets.convert`` all the way to a
+built on rosbags pays) and converted by ``vessel_datasets.pipeline`` all the way to a
 written dataset. Goals: converter >= 0.7 x the bare pass; 96 h of data in <= 60 s.
 """
 
@@ -17,7 +17,8 @@ import time
 from rosbags.highlevel import AnyReader
 
 from vessel_datasets import synthetic
-from vessel_datasets.convert import Options, convert_bags, write
+from vessel_datasets.pipeline import Options, assign_split, convert_all, write
+from vessel_datasets.readers.bags import BagRecordings
 from vessel_datasets.topic_map import topic_map_for
 from vessel_description import load_vessel
 
@@ -92,9 +93,11 @@ def converter_pass(bag: Path, out: Path) -> tuple[int, float, int, int]:
     """Convert the bag to a dataset on disk, as offline/bag_to_dataset.py does."""
     topic_map, opts = topic_map_for(load_vessel(synthetic.SIM_VESSEL)), Options.from_yaml()
     start = time.perf_counter()
-    results = convert_bags([bag], topic_map, opts)
-    write(out, results, topic_map, opts)
+    reader = BagRecordings()
+    results = convert_all([bag], reader, topic_map, opts)
+    write(out, results, reader, topic_map, opts,
+          assign_split(results, (), (), opts.seed, opts.split))
     elapsed = time.perf_counter() - start
     report = results[0].report
-    return (report['messages_read'], elapsed, len(results[0].runs),
+    return (report['read'][0], elapsed, len(results[0].runs),
             sum(r['samples'] for r in report['runs']))

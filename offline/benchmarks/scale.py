@@ -36,8 +36,9 @@ import torch
 
 from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
 from vessel_datasets import synthetic
-from vessel_datasets.convert import Options, convert_bags
 from vessel_datasets.format import read_dataset, write_dataset
+from vessel_datasets.pipeline import Options, convert_all
+from vessel_datasets.readers.bags import BagRecordings
 from vessel_datasets.topic_map import topic_map_for
 from vessel_description import load_vessel
 
@@ -210,9 +211,9 @@ def convert_throughput(bags: list[Path], workers: int) -> dict:
     topic_map = topic_map_for(load_vessel(synthetic.SIM_VESSEL))
     opts = Options.from_yaml()
     start = time.perf_counter()
-    results = convert_bags(bags, topic_map, opts, jobs=workers)
+    results = convert_all(bags, BagRecordings(), topic_map, opts, jobs=workers)
     seconds = time.perf_counter() - start
-    messages = sum(r.report['messages_read'] for r in results)
+    messages = sum(r.report['read'][0] for r in results)
     return {'workers': workers, 'bags': len(bags), 'messages': messages, 'seconds': seconds,
             'messages_per_s': messages / seconds}
 

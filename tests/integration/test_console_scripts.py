@@ -21,6 +21,8 @@ PROGRAMS = {
     'simulate': 'vessel_datasets',
     'bag_to_dataset': 'vessel_datasets',
     'table_to_dataset': 'vessel_datasets',
+    'log_to_dataset': 'vessel_datasets',
+    'scale_physics': 'vessel_physics',
     'diagnose': 'vessel_diagnosis',
     'simulate_scenario': 'vessel_diagnosis',
     'record': 'vessel_recorder',

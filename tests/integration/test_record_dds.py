@@ -15,7 +15,7 @@ from mcap_ros2.decoder import DecoderFactory
 import pytest
 
 from vessel_datasets.bag_source import BagReader, find_bags
-from vessel_datasets.convert import bag_to_runs
+from vessel_datasets.readers.bags import bag_to_runs
 from vessel_datasets.topic_map import topic_map_for
 from vessel_description import load_vessel
 

@@ -30,7 +30,7 @@ def test_node_to_bag_to_dataset_matches_the_batch_simulator(launcher, ros_node, 
     from nav_msgs.msg import Odometry
 
     from vessel_datasets.bag_source import find_bags
-    from vessel_datasets.convert import Options, convert_bag
+    from vessel_datasets.readers.bags import convert_bag
     from vessel_datasets.topic_map import topic_map_for
     from vessel_physics.config import load_config
     from vessel_physics.simulator import Simulator
@@ -46,7 +46,7 @@ def test_node_to_bag_to_dataset_matches_the_batch_simulator(launcher, ros_node, 
     assert launcher.stop(recorder) == 0, recorder.output()
 
     [bag] = find_bags([bag_dir])
-    result = convert_bag(bag, topic_map_for(SHIP), Options.from_yaml())
+    result = convert_bag(bag, topic_map_for(SHIP))
     assert result.error is None, result.error
     assert len(result.runs) == 1, result.report
     [(run_id, table)] = result.runs.items()

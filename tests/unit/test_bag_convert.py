@@ -17,9 +17,10 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
 from vessel_datasets import bag_to_dataset, synthetic
 from vessel_datasets import format as fmt
-from vessel_datasets.bag_source import find_bags, sha256
-from vessel_datasets.convert import Options, bag_to_runs, convert_bag
-from vessel_datasets.quantities import WGS84_A_M, WGS84_F
+from vessel_datasets.bag_source import find_bags
+from vessel_datasets.quantities import local_projection
+from vessel_datasets.readers.bags import bag_to_runs, convert_bag
+from vessel_datasets.sources import sha256
 from vessel_datasets.topic_map import parse_topic_map, topic_map_for
 from vessel_description import load_vessel
 from vessel_physics import frames
@@ -80,16 +81,16 @@ def write_damaged_bag(path):
 
 def test_drops_and_gaps_are_counted_exactly(tmp_path):
     (bag,) = find_bags([write_damaged_bag(tmp_path / 'damaged')])
-    result = convert_bag(bag, topic_map_for(SHIP), Options.from_yaml())
+    result = convert_bag(bag, topic_map_for(SHIP))
     assert result.error is None
-    topics = result.report['topics']
+    topics = result.report['sources']
     assert topics['/vessel/odom']['received'] == 204
     assert topics['/vessel/odom']['kept'] == 198
     assert topics['/vessel/odom']['dropped'] == {'nan': 2, 'duplicate': 3, 'out_of_order': 1}
     assert topics['/vessel/wind']['dropped'] == {'nan': 0, 'duplicate': 0, 'out_of_order': 0}
     assert topics['/vessel/wind']['received'] == 190
     (gap,) = result.report['gaps']
-    assert gap['topic'] == '/vessel/wind' and gap['duration_s'] == 11.0
+    assert gap['sources'] == ['/vessel/wind'] and gap['duration_s'] == 11.0
     assert [r['samples'] for r in result.report['runs']] == [100, 90]
     assert [len(t) for t in result.runs.values()] == [100, 90]
 
@@ -106,7 +107,7 @@ def test_missing_topic_lists_what_the_bag_contains(tmp_path):
     data = topic_map_for(SHIP).to_dict()
     data['wind']['velocity']['topic'] = '/weather/wind'
     (found,) = find_bags([bag])
-    result = convert_bag(found, parse_topic_map(data, SHIP), Options.from_yaml())
+    result = convert_bag(found, parse_topic_map(data, SHIP))
     assert result.error == (
         f'{bag}: the topic map needs /weather/wind (wind.velocity), which the bag lacks; '
         'it has: /vessel/actuators (sensor_msgs/msg/JointState, 30 msgs), /vessel/odom '
@@ -119,7 +120,7 @@ def test_missing_field_lists_the_numeric_fields(tmp_path):
     data = topic_map_for(SHIP).to_dict()
     data['body_velocity']['surge']['field'] = 'twist.linear.x'
     (found,) = find_bags([bag])
-    result = convert_bag(found, parse_topic_map(data, SHIP), Options.from_yaml())
+    result = convert_bag(found, parse_topic_map(data, SHIP))
     assert result.error.startswith(
         f"{bag}: the topic map reads 'twist.linear.x' (body_velocity.surge) from /vessel/odom "
         "(nav_msgs/msg/Odometry): no field 'linear' in geometry_msgs/msg/TwistWithCovariance;"
@@ -159,12 +160,9 @@ LAT0, LON0 = 59.9, 10.7
 
 
 def local_to_latlon(north, east):
-    """Inverse of the converter's tangent-plane projection (WGS 84 radii at LAT0)."""
-    e2 = WGS84_F * (2 - WGS84_F)
-    w = math.sqrt(1 - e2 * math.sin(math.radians(LAT0)) ** 2)
-    meridian, prime = WGS84_A_M * (1 - e2) / w ** 3, WGS84_A_M / w
-    return (LAT0 + np.degrees(north / meridian),
-            LON0 + np.degrees(east / (prime * math.cos(math.radians(LAT0)))))
+    """Inverse of the converter's projection (pyproj, centred on the first fix)."""
+    lon, lat = local_projection(LAT0, LON0).transform(east, north, direction='INVERSE')
+    return np.asarray(lat), np.asarray(lon)
 
 
 def write_foreign_bag(path, traj):
@@ -257,25 +255,27 @@ def test_cli_writes_dataset_manifest_and_split(tmp_path, capsys):
     assert run_cli(*bags, '--out', out, '--jobs', 2, '--seed', 3, '--split', '0.5,0,0.5',
                    '--quiet') == 0
     dataset = fmt.read_dataset(out)
-    assert dataset.run_ids() == ['bag0-000', 'bag1-000']
+    assert dataset.run_ids() == ['bag0', 'bag1']
     assert sorted(dataset.run_ids('train') + dataset.run_ids('test')) == dataset.run_ids()
     manifest = dataset.manifest
     assert manifest['split']['seed'] == 3 and manifest['split']['fractions'] == [0.5, 0, 0.5]
     sources = manifest['provenance']['sources']
     assert [s['sha256'] for s in sources] == [sha256(next(b.glob('*.mcap'))) for b in bags]
     conversion = manifest['conversion']
-    assert conversion['rate_hz'] == 1.0 and conversion['time_source'] == 'header'
+    assert conversion['rate_hz'] == 1.0
+    assert manifest['provenance']['config']['time_source'] == 'header'
     # One manifest entry per bag, whichever worker process converted it.
-    assert [b['name'] for b in conversion['bags']] == ['bag0', 'bag1']
+    assert [b['name'] for b in conversion['recordings']] == ['bag0', 'bag1']
     assert conversion['dropped_samples'] == {'nan': 0, 'duplicate': 0, 'out_of_order': 0}
-    assert manifest['provenance']['config']['topic_map']['wind']['frame'] == 'flu'
-    assert len(dataset.load('bag1-000')) == 101
+    assert manifest['provenance']['config']['map']['wind']['frame'] == 'flu'
+    assert manifest['provenance']['config']['map_section'] == 'topics'
+    assert len(dataset.load('bag1')) == 101
     assert str(out / 'manifest.json') in capsys.readouterr().out
 
     # An existing dataset is not overwritten unless asked.
     assert run_cli(bags[0], '--out', out, '--quiet') == 2
     assert run_cli(bags[0], '--out', out, '--quiet', '--overwrite') == 0
-    assert fmt.read_dataset(out).run_ids() == ['bag0-000']
+    assert fmt.read_dataset(out).run_ids() == ['bag0']
 
 
 def test_two_workers_write_the_same_dataset_as_one(tmp_path):
@@ -295,7 +295,7 @@ def test_two_workers_write_the_same_dataset_as_one(tmp_path):
         del manifest['provenance']['argv']  # the only difference: --jobs and --out
         manifests.append(manifest)
     assert manifests[0] == manifests[1]
-    assert [b['name'] for b in manifests[0]['conversion']['bags']] == [
+    assert [b['name'] for b in manifests[0]['conversion']['recordings']] == [
         'bag0', 'damaged', 'bag1', 'bag2', 'junk']
     for run in manifests[0]['runs']:
         assert (tmp_path / 'dataset1' / run['file']).read_bytes() == (

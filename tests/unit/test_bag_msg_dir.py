@@ -27,8 +27,8 @@ from vessel_datasets.bag_source import (
     build_typestore,
     find_bags,
 )
-from vessel_datasets.convert import Options, convert_bag
 from vessel_datasets.fields import FieldError, check_path
+from vessel_datasets.readers.bags import convert_bag
 from vessel_datasets.topic_map import parse_topic_map, topic_map_for
 from vessel_description import load_vessel
 
@@ -154,7 +154,7 @@ def test_the_humble_bag_really_carries_no_definitions(humble_bag):
 def test_without_msg_dir_the_error_names_the_type_and_the_flag(humble_bag):
     data = topic_map_for(SHIP).to_dict()
     data['wind']['velocity']['topic'] = TOPIC
-    result = convert_bag(humble_bag, parse_topic_map(data, SHIP), Options.from_yaml())
+    result = convert_bag(humble_bag, parse_topic_map(data, SHIP))
     assert result.error == (
         f'{humble_bag.path}: topic {TOPIC} has type {TYPE}, which has no definition in the '
         'bag or in an installed package and is not a ROS 2 Jazzy type (give its .msg file '

@@ -18,7 +18,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from vessel_datasets import synthetic
 from vessel_datasets.bag_source import BagError, BagReader, find_bags
-from vessel_datasets.convert import Options, bag_to_runs, convert_bag
+from vessel_datasets.readers.bags import bag_to_runs, convert_bag
 from vessel_datasets.topic_map import topic_map_for
 from vessel_description import load_vessel
 
@@ -110,7 +110,7 @@ def test_cut_inside_the_first_record_leaves_nothing_usable(long_bag, tmp_path):
     bag = tmp_path / 'stub.mcap'
     bag.write_bytes(src.read_bytes()[:first.chunk_start_offset + 20])
     (found,) = find_bags([bag])
-    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP))
     assert result.error and 'which the bag lacks' in result.error
     assert any('cut short' in line for line in result.report['losses'])
 
@@ -153,7 +153,7 @@ def test_not_an_mcap_file(tmp_path):
     bad = tmp_path / 'junk.mcap'
     bad.write_bytes(b'this is not a bag' * 10)
     (found,) = find_bags([bad])
-    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP))
     assert any('not an MCAP file' in line for line in result.report['losses'])
     assert result.error
 
@@ -174,7 +174,7 @@ def test_unknown_type_gives_one_line_and_the_rest_converts(tmp_path):
     bag = _write_with_extra_topic(tmp_path / 'unknown', 'acme_msgs/msg/Ping', '',
                                   'RIHS01_' + '0' * 64)
     (found,) = find_bags([bag])
-    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP))
     assert result.error is None and len(result.runs) == 1
     notes = [n for n in result.report['notes'] if '/sonar/ping' in n]
     assert notes == ['topic /sonar/ping has type acme_msgs/msg/Ping, which has no definition '
@@ -264,7 +264,7 @@ def test_corrupt_chunk_is_skipped_and_reported(tmp_path):
     bag = tmp_path / 'flipped.mcap'
     bag.write_bytes(bytes(data))
     (found,) = find_bags([bag])
-    result = convert_bag(found, topic_map_for(SHIP), Options.from_yaml())
+    result = convert_bag(found, topic_map_for(SHIP))
     assert result.error is None
     assert any(f'chunk at byte {chunks[1].chunk_start_offset} (zstd' in line
                and 'its messages are lost' in line for line in result.report['losses'])

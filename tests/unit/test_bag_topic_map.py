@@ -137,9 +137,9 @@ def test_a_3dof_vessel_maps_array_elements_and_needs_no_roll_or_wind():
     (lambda d: d.update(wind={'velocity': {'topic': '/w', 'field': 'v'}}),
      'declares no wind input'),
     (lambda d: d['body_velocity'].update(roll_rate={'topic': '/s', 'field': 'vel[3]'}),
-     'expected surge+sway+yaw_rate'),
+     "body_velocity maps ['roll_rate'], but vessel 'small_boat' models no roll"),
     (lambda d: d['attitude'].update(roll={'topic': '/s', 'field': 'pose[3]'}),
-     'expected quaternion or heading'),
+     "attitude maps ['roll'], but vessel 'small_boat' models no roll"),
     (lambda d: d['position'].pop('y'), 'expected point or latlon or x+y'),
 ])
 def test_a_3dof_vessel_refuses_what_it_does_not_have(edit, message):

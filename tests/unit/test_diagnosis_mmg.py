@@ -179,5 +179,12 @@ def test_a_full_scale_vessel_file_is_refused_on_model_scale_recordings(dataset, 
     runs = {run_id: read_dataset(dataset).load(run_id) for run_id in read_dataset(dataset)
             .run_ids()}
     write_dataset(ship_scale, runs, vessel=parse_vessel(data), provenance={})
-    with pytest.raises(ScaleError, match='turns of'):
+    # The 7 m model's physics file is for another scale: refused, naming both lengths.
+    with pytest.raises(RecordingsError, match='made for L_pp 7 m, but vessel .* is 320 m'):
         mmg_family.diagnose_mmg(ship_scale, tmp_path / 'out')
+    # With a physics file for 320 m, the recordings themselves turn too fast for it.
+    full = mmg.froude_scaled(mmg.load_mmg(mmg.find_params_file(TANKER.physics)), 320.0)
+    (tmp_path / 'full.yaml').write_text(yaml.safe_dump(
+        {'format': mmg.FORMAT, **full.__dict__}))
+    with pytest.raises(ScaleError, match='turns of'):
+        mmg_family.diagnose_mmg(ship_scale, tmp_path / 'out', params_file=tmp_path / 'full.yaml')

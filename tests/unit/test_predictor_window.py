@@ -146,15 +146,19 @@ def test_buffers_keep_only_what_a_window_needs():
     assert window.assemble(now=2000.0).ready
 
 
-def test_the_window_equals_offline_conversion_of_the_same_messages(tmp_path):
+@pytest.mark.parametrize('delays', [{}, {'surge': 2.0, 'sway': 2.0, 'position': 2.0}])
+def test_the_window_equals_offline_conversion_of_the_same_messages(tmp_path, delays):
     """One preprocessing core: the online window matches the converter's dataset."""
     from vessel_datasets import synthetic
-    from vessel_datasets.convert import bag_to_runs
+    from vessel_datasets.readers.bags import bag_to_runs
 
+    data = topic_map_for(BOAT).to_dict()
+    for name, delay in delays.items():  # fields stamped 2 s after they were measured
+        entry = data['position'] if name == 'position' else data['body_velocity'][name]
+        entry['delay_s'] = delay
+    topic_map = parse_topic_map(data, BOAT)
     traj = synthetic.demo_trajectory(400, rate_hz=5.0)
-    (table,) = bag_to_runs(synthetic.write_bag(tmp_path / 'bag', traj),
-                           topic_map_for(BOAT)).values()
-    topic_map = topic_map_for(BOAT)
+    (table,) = bag_to_runs(synthetic.write_bag(tmp_path / 'bag', traj), topic_map).values()
     window = InputWindow(topic_map, window=W, dt=DT, max_gap=2.5, max_age=5.0)
     readers = {t: channel_reader(topic_map, t) for t in topic_map.topics}
     # The dataset's grid lies on whole seconds: end the online window on one too.
@@ -164,6 +168,8 @@ def test_the_window_equals_offline_conversion_of_the_same_messages(tmp_path):
             window.push(topic, ns * 1e-9, readers[topic](msg))
     result = window.assemble(now=end_ns * 1e-9)
     assert result.ready
+    # Delayed fields end the window that much earlier, where the dataset ends too.
+    assert result.t_end == pytest.approx(end_ns * 1e-9 - max(delays.values(), default=0.0))
     tail = table.iloc[-W:]
     np.testing.assert_allclose(result.states, tail[list(BOAT.state_names)], atol=1e-9)
     np.testing.assert_allclose(result.controls, tail[list(BOAT.control_names)], atol=1e-9)

@@ -24,5 +24,6 @@ setup(
         'simulate = vessel_datasets.simulate:main',
         'bag_to_dataset = vessel_datasets.bag_to_dataset:main',
         'table_to_dataset = vessel_datasets.table_to_dataset:main',
+        'log_to_dataset = vessel_datasets.log_to_dataset:main',
     ]},
 )

@@ -22,5 +22,7 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='4-DOF patrol-vessel physics and a vectorized simulator (no ROS).',
     license='Apache-2.0',
-    entry_points={'console_scripts': []},
+    entry_points={'console_scripts': [
+        'scale_physics = vessel_physics.scale_physics:main',
+    ]},
 )

@@ -13,7 +13,9 @@ heading unwrapped), ``vessel_datasets.resample.sample`` (states linear, actuator
 wind held) and ``to_columns`` (frames, units, the vessel's vector order) -- so the
 model sees what it was trained on. A window is only handed out when every grid point
 is covered without gaps longer than ``max_gap`` and the newest state is at most
-``max_age`` old; otherwise the result says why.
+``max_age`` old; otherwise the result says why. A channel whose map entry has a
+``delay_s`` is moved back by it, as the converter does, so the window ends at the newest
+time every channel covers: the newest state sample less the longest delay.
 
 Times are in seconds on the clock of the message stamps.
 """
@@ -28,7 +30,7 @@ import numpy as np
 
 from vessel_datasets.extract import TopicSamples
 from vessel_datasets.fields import compile_getter
-from vessel_datasets.quantities import channel_methods, derive, to_columns
+from vessel_datasets.quantities import channel_delays, channel_methods, derive, to_columns
 from vessel_datasets.resample import sample
 from vessel_datasets.topic_map import TopicMap
 
@@ -224,6 +226,7 @@ class InputWindow:
         self.topic_map, self.vessel = topic_map, topic_map.vessel
         self.window, self.dt = window, dt
         self.methods = channel_methods(topic_map)
+        self.delays = channel_delays(topic_map)  # s; the measured time is stamp - delay
         self.plausibility = plausibility
         self.restarts = 0
         leaves: dict[str, list[str]] = {}
@@ -236,6 +239,9 @@ class InputWindow:
         self.configure(max_gap=max_gap, max_age=max_age, max_future=max_future,
                        restart_span=restart_span)
         self.state_topic = next(e.topic for e in topic_map.entries if e.name == STATE_ENTRY)
+        self.lag = max(self.delays.values(), default=0.0)
+        self.stream_delays = {topic: sorted({self.delays.get(c, 0.0) for c in s.channels})
+                              for topic, s in self.streams.items()}
 
     def configure(self, max_gap: float, max_age: float, max_future: float,
                   restart_span: float) -> None:
@@ -292,14 +298,16 @@ class InputWindow:
         if t_end is None:
             return Window(False, 'incomplete', f'no {self.state_topic} received', 0.0, None,
                           None)
+        t_end -= self.lag
         age = now - t_end
         grid = t_end - self.dt * np.arange(self.window - 1, -1, -1, dtype=float)
         reasons, covered = [], []
-        for stream in self.streams.values():
-            reason, count = stream.coverage(grid, self.max_gap)
-            covered.append(count)
-            if reason:
-                reasons.append(reason)
+        for topic, stream in self.streams.items():
+            for delay in self.stream_delays[topic]:
+                reason, count = stream.coverage(grid + delay, self.max_gap)
+                covered.append(count)
+                if reason:
+                    reasons.append(reason)
         fill = min(covered) / self.window
         if reasons:
             return Window(False, 'incomplete', '; '.join(reasons), fill, t_end, age)
@@ -321,6 +329,7 @@ class InputWindow:
             raw = TopicSamples(topic, '', stream.channels, np.round(times * 1e9).astype(
                 np.int64), values)
             s = derive(raw, self.topic_map)
-            on_grid = sample(s.t_ns, s.values, grid_ns, [self.methods[c] for c in s.channels])
-            channels.update({c: on_grid[:, i] for i, c in enumerate(s.channels)})
+            for i, c in enumerate(s.channels):
+                t_ns = s.t_ns - int(round(self.delays.get(c, 0.0) * 1e9))
+                channels[c] = sample(t_ns, s.values[:, i:i + 1], grid_ns, [self.methods[c]])[:, 0]
         return to_columns(channels, self.topic_map, relative=False)

@@ -21,9 +21,7 @@ from __future__ import annotations
 
 from collections import Counter
 from collections.abc import Iterable, Iterator
-from dataclasses import dataclass, field
-from datetime import UTC, datetime
-import hashlib
+from dataclasses import dataclass
 import importlib.util
 from io import BytesIO
 import os
@@ -49,6 +47,8 @@ from rosbags.typesys import Stores, get_types_from_idl, get_types_from_msg, get_
 from rosbags.typesys.store import Nodetype, Typestore
 import yaml
 
+from .sources import Recording, RecordingError, format_ns, unique_names
+
 STORAGE_SUFFIXES = ('.mcap', '.db3')
 METADATA = 'metadata.yaml'
 # rosbag2 names the files of a split recording <name>_<index>.<ext>.
@@ -58,7 +58,7 @@ _READ_ERRORS = (ReaderError, McapError, struct.error, ValueError, OSError, EOFEr
                 zstd.ZstdError, RuntimeError)
 
 
-class BagError(ValueError):
+class BagError(RecordingError):
     """A path holds no readable recording."""
 
 
@@ -67,13 +67,9 @@ class MessageDefinitionError(ValueError):
 
 
 @dataclass
-class Bag:
+class Bag(Recording):
     """One recording: the storage files of a rosbag2 directory, or loose .mcap files."""
 
-    name: str
-    path: Path
-    files: list[Path]
-    notes: list[str] = field(default_factory=list)
     whole_directory: bool = False  # read through rosbags as one (file/message compression)
 
 
@@ -112,7 +108,7 @@ def find_bags(paths: Iterable[str | os.PathLike]) -> list[Bag]:
                 raise BagError(f'{path}: no rosbag2 directory or {"/".join(STORAGE_SUFFIXES)} '
                                f'file inside')
             bags += found
-    return _unique_names(bags)
+    return unique_names(bags)
 
 
 def _search(root: Path) -> list[Bag]:
@@ -187,29 +183,6 @@ def _directory_bag(path: Path) -> Bag:
     bag.files += extra
     bag.files.sort(key=_split_index)
     return bag
-
-
-def _unique_names(bags: list[Bag]) -> list[Bag]:
-    seen: Counter[str] = Counter()
-    for bag in bags:
-        base = re.sub(r'[^A-Za-z0-9_.-]+', '_', bag.name) or 'bag'
-        seen[base] += 1
-        bag.name = base if seen[base] == 1 else f'{base}.{seen[base]}'
-    return bags
-
-
-def sha256(path: Path, block: int = 1 << 20) -> str:
-    """SHA-256 of a file's bytes, hex."""
-    digest = hashlib.sha256()
-    with path.open('rb') as f:
-        while chunk := f.read(block):
-            digest.update(chunk)
-    return digest.hexdigest()
-
-
-def format_ns(ns: int) -> str:
-    """Format a log time (ns since the epoch) as ISO 8601 UTC, to the millisecond."""
-    return datetime.fromtimestamp(ns / 1e9, tz=UTC).isoformat(timespec='milliseconds')
 
 
 @dataclass

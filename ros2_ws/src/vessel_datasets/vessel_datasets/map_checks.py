@@ -1,25 +1,34 @@
 """
-Checks that a recording map (topic or column map) gives the quantities it claims.
+Checks that a recording map (topic, column or log map) gives the quantities it claims.
 
-A map names a column or field per quantity with a unit and a frame; a wrong unit, frame
-or sign still gives numbers that look fine on their own. These checks compare
-quantities the data measures twice -- once directly, once as the derivative of another
--- on one run's dataset columns (model units and frames, after conversion):
+A map names a field or column per quantity with a unit, a frame and a delay; a wrong
+unit, frame, sign or delay still gives numbers that look fine on their own. These
+checks compare quantities the data measures twice -- once directly, once as the
+derivative of another -- on one run's dataset columns (model units and frames, after
+conversion):
 
 * velocity: body u, v rotated to NED by psi (``vessel_physics.integrator.kinematics``)
   against d(x, y)/dt: least-squares slope through the origin and correlation, then the
   course (direction) difference, which catches earth-frame velocities mapped as body;
-* drift: the angle between the bow and the velocity, which catches a wrong heading
-  convention where velocities were rotated by that same heading;
+* timing: the lags of position, heading and yaw rate behind the velocity
+  (``timing``), judged over all runs and printed as the ``delay_s`` entries that would
+  remove them;
+* heading against the track: the heading's rate against the course's rate (a mirrored
+  heading convention or an angle unit turns it), and the drift angle while running
+  straight (a heading offset);
 * yaw rate against d(psi)/dt, roll rate against d(phi)/dt (where they were mapped,
-  not differentiated);
-* spikes: samples beyond the vessel's declared ranges (``limits`` for states,
-  actuator ranges) and single-sample jumps of states far beyond their neighbours.
+  not differentiated); speed over ground against the track's speed, where mapped;
+* spikes (``spikes``): samples beyond the vessel's declared ranges and single-sample
+  jumps, dropped before resampling and counted here.
 
-A slope far from 1 is matched against known unit slips (deg/rad, knots, km/h, rev,
-per minute, ms) and the message names the map entry to fix. Each check gives a
-:class:`Check`; its ``detail`` holds sums, so checks of many runs pool into one
-(:func:`aggregate`).
+Both sides of every comparison are averaged over the same time, at least ``SMOOTH_S``
+and longer where a quantity is coarse (``resolution``): quantisation then stays below a
+twentieth of the change compared, while a wrong unit, sign or frame does not average
+out. Velocities derived from the track are not compared with it (circular); the
+heading checks still test them. A slope far from 1 is matched against known unit slips
+(deg/rad, knots, km/h, rev, per minute, ms) and the message names the map entry to fix.
+Each check gives a :class:`Check`; its ``detail`` holds sums, so checks of many runs
+pool into one (:func:`aggregate`).
 """
 
 from __future__ import annotations
@@ -32,27 +41,37 @@ from typing import Any, TextIO
 import numpy as np
 import pandas as pd
 
-from vessel_description import Vessel
 from vessel_description.vessel import plain
 from vessel_physics.integrator import kinematics
+
+from . import timing
+from .topic_map import TopicMap
 
 # A slope within this of 1 (and a correlation at least MIN_CORR) passes.
 SLOPE_TOL = 0.1
 MIN_CORR = 0.9
+# Heading rate against course rate: in a steady turn the course turns as the heading
+# does (slope 1); in a zig-zag the drift angle swings against the heading and the course
+# turns less (KVLCC2: 0.45, the snuboat's free runs about 0.6). A mirrored heading gives
+# a negative slope, an angle unit a factor of 57 or 2 pi.
+TURN_RATIO = 3.0          # slope within [1/3, 3]...
+TURN_MIN_CORR = 0.5       # ...and at least this correlation
 # A slope within this relative distance of a known factor is named as that slip (deg/rad
 # and per minute are 4.7 % apart).
 FACTOR_TOL = 0.03
-MAX_COURSE_DEG = 2.0      # rms course difference of velocity vs d(position)/dt
-MAX_DRIFT_DEG = 30.0      # rms drift angle of a ship under way (crabbing/astern exceed it)
+MAX_COURSE_DEG = 2.0      # typical (median) course difference, velocity vs d(position)/dt
+MAX_DRIFT_DEG = 15.0      # typical (median) drift angle while running straight
+# Angles are judged by their median, pooled through a histogram (deg): a few samples of a
+# tracking glitch do not fail a right map; a wrong one is off almost everywhere.
+ANGLE_BINS = np.concatenate([np.arange(0.0, 10.0, 0.05), np.arange(10.0, 181.0, 1.0)])
+TURN_LENGTHS = 5.0        # heading and course turns are compared over this many lengths
+POOLED = ('timing', 'turn')  # kinds of check judged over all runs only
+STRAIGHT = 0.1            # running straight: |r| L / U below this (turning radius > 10 L)
+MIN_STRAIGHT_S = 5.0      # fewer straight-running seconds leave the drift unjudged
 MIN_SPEED = 0.05          # m/s; slower runs are too still to test the velocity map
 MIN_RATE = math.radians(0.1)  # rad/s; steadier runs cannot test a rate map
 MOVING = 0.25             # samples above this share of the 95th-percentile speed count
-SMOOTH_S = 1.0            # both sides are averaged over this long against noise
-# Out-of-range samples are spikes only while they are this rare; more means a unit or
-# column is wrong, and they are kept so the other checks can say which.
-MAX_SPIKE_SHARE = 0.05
-JUMP_MADS = 10.0          # a jump beyond this many robust sigmas of its neighbours...
-JUMP_SPAN = 0.1           # ...and beyond this share of the state's declared range
+SMOOTH_S = 1.0            # both sides are averaged over at least this long against noise
 
 KNOT = 1852.0 / 3600.0
 DEG = 180.0 / math.pi
@@ -70,18 +89,27 @@ UNIT_SLIPS: dict[str, dict[float, str]] = {
     'time': {1000.0: 'ms given as s', 0.001: 's given as ms', 1 / 60.0: 'min given as s'},
 }
 
-# Map entries named in messages: a column map's and a topic map's.
-COLUMN_LABELS = {'velocity': 'columns.velocity', 'position': 'columns.position',
-                 'heading': 'columns.heading', 'yaw_rate': 'columns.yaw_rate',
-                 'roll_rate': 'columns.roll_rate', 'roll': 'columns.roll',
-                 'time': 'columns.time', 'actuators': 'columns.actuators'}
-TOPIC_LABELS = {'velocity': 'topics.body_velocity', 'position': 'topics.position',
-                'heading': 'topics.attitude', 'yaw_rate': 'topics.body_velocity.yaw_rate',
-                'roll_rate': 'topics.body_velocity.roll_rate', 'roll': 'topics.attitude',
-                'time': 'stamps', 'actuators': 'topics.actuators'}
+# Map entries named in messages, per section of the vessel file the map comes from.
+LABELS = {
+    'columns': {'velocity': 'columns.velocity', 'position': 'columns.position',
+                'heading': 'columns.heading', 'yaw_rate': 'columns.yaw_rate',
+                'roll_rate': 'columns.roll_rate', 'roll': 'columns.roll',
+                'time': 'columns.time', 'actuators': 'columns.actuators',
+                'speed_over_ground': 'columns.speed_over_ground'},
+    'topics': {'velocity': 'topics.body_velocity', 'position': 'topics.position',
+               'heading': 'topics.attitude', 'yaw_rate': 'topics.body_velocity.yaw_rate',
+               'roll_rate': 'topics.body_velocity.roll_rate', 'roll': 'topics.attitude',
+               'time': 'stamps', 'actuators': 'topics.actuators',
+               'speed_over_ground': 'topics.speed_over_ground'},
+}
+LABELS['logs'] = {k: v.replace('topics.', 'logs.') for k, v in LABELS['topics'].items()}
 # Dataset column -> map quantity, for spike messages.
 QUANTITY_OF = {'u': 'velocity', 'v': 'velocity', 'p': 'roll_rate', 'r': 'yaw_rate',
                'phi': 'roll'}
+# Quantities whose coarseness sets the averaging time of each comparison.
+SCALES_OF = {'velocity': ('velocity', 'position'), 'heading': ('velocity', 'position',
+                                                                'heading'),
+             'yaw_rate': ('yaw_rate', 'heading'), 'roll_rate': ('roll_rate', 'roll')}
 
 
 @dataclass(frozen=True)
@@ -110,80 +138,54 @@ class Check:
         return asdict(self)
 
 
+@dataclass(frozen=True)
+class Context:
+    """What a map and its conversion tell the checks about one run."""
+
+    labels: Mapping[str, str]
+    derived: tuple[str, ...] = ()      # 'r', 'p', 'track': differentiated by the converter
+    entries: Mapping[str, Sequence[tuple[str, float]]] = field(default_factory=dict)
+    scales: Mapping[str, float] = field(default_factory=dict)   # quantity -> s
+    length_m: float = 1.0
+    extras: Mapping[str, np.ndarray] = field(default_factory=dict)  # 'sog' on the grid
+    interval_s: float = 0.0            # the recording's longest typical sample interval
+
+
+def context_for(topic_map: TopicMap, scales: Mapping[str, float] | None = None,
+                extras: Mapping[str, np.ndarray] | None = None, interval_s: float = 0.0
+                ) -> Context:
+    """Return the checks' context of a map: labels, what was derived, entries to delay."""
+    leaves = topic_map.leaves()
+    channels = {leaf.channel for leaf in leaves}
+    derived = () if 'yaw_rate' in channels else ('r',)
+    if topic_map.vessel.has_roll and 'roll_rate' not in channels:
+        derived += ('p',)
+    if not channels & {'surge', 'vel_north'}:
+        derived += ('track',)
+    section = topic_map.section
+    quantity = {'surge': 'velocity', 'sway': 'velocity', 'vel_north': 'velocity',
+                'vel_east': 'velocity', 'yaw_rate': 'yaw_rate', 'heading': 'heading',
+                'qx': 'heading'}
+    entries: dict[str, list[tuple[str, float]]] = {}
+    for e in topic_map.entries:
+        q = 'position' if e.group == 'position' else quantity.get(
+            e.name if e.name != 'quaternion' else 'qx')
+        if q is None:
+            continue
+        if section == 'columns':  # a column map names quantities, not groups
+            label = LABELS['columns'][q]
+        else:
+            label = f'{section}.{e.group}' if q == 'position' else f'{section}.{e.label}'
+        if (label, e.delay_s) not in entries.setdefault(q, []):
+            entries[q].append((label, e.delay_s))
+    return Context(LABELS[section], derived, entries, dict(scales or {}),
+                   topic_map.vessel.length_m, dict(extras or {}), interval_s)
+
+
 # ----------------------------------------------------------------- spikes
-@dataclass
-class Spikes:
-    """Spike masks of one column and whether they may be dropped."""
-
-    column: str
-    samples: int
-    out_of_range: np.ndarray
-    jumps: np.ndarray
-    bounds: tuple[float, float] | None
-
-    @property
-    def droppable(self) -> bool:
-        """Whether the out-of-range samples are rare enough to be spikes."""
-        return int(self.out_of_range.sum()) <= MAX_SPIKE_SHARE * max(self.samples, 1)
-
-    @property
-    def mask(self) -> np.ndarray:
-        """Return the samples to drop: jumps always, out-of-range ones while rare."""
-        return self.jumps | (self.out_of_range if self.droppable else False)
-
-    def counts(self) -> dict[str, Any]:
-        """Return counts for a report: samples, out of range, jumps, whether dropped."""
-        return {'samples': int(self.samples), 'out_of_range': int(self.out_of_range.sum()),
-                'jumps': int(self.jumps.sum()), 'dropped': bool(self.droppable),
-                'bounds': list(self.bounds) if self.bounds else None}
-
-
-def bounds_of(vessel: Vessel, column: str) -> tuple[float, float] | None:
-    """Return the declared range of a state (``limits``) or actuator, if any."""
-    if column in vessel.limits:
-        return vessel.limits[column]
-    if column in vessel.actuator_names:
-        a = vessel.actuator(column)
-        return (a.low, a.high)
-    return None
-
-
-def find_spikes(column: str, values: np.ndarray, vessel: Vessel) -> Spikes:
-    """
-    Find the spikes of one column (model units); NaN samples are never spikes.
-
-    States are tested for range and single-sample jumps, actuators for range only
-    (commands may step).
-    """
-    values = np.asarray(values, float)
-    finite = np.isfinite(values)
-    bounds = bounds_of(vessel, column)
-    out = np.zeros(len(values), bool)
-    if bounds is not None:
-        out[finite] = (values[finite] < bounds[0]) | (values[finite] > bounds[1])
-    jumps = np.zeros(len(values), bool)
-    if column in vessel.states:
-        keep = finite & ~out
-        idx = np.nonzero(keep)[0]
-        if len(idx) >= 5:
-            x = values[idx]
-            span = (bounds[1] - bounds[0]) if bounds else float(np.ptp(x))
-            jumps[idx] = _jumps(x, span)
-    return Spikes(column, int(finite.sum()), out, jumps, bounds)
-
-
-def _jumps(x: np.ndarray, span: float) -> np.ndarray:
-    """Flag samples far from the median of their two neighbours either side."""
-    pad = np.pad(x, 2, mode='edge')
-    neighbours = np.stack([pad[:-4], pad[1:-3], pad[3:-1], pad[4:]])
-    d = x - np.median(neighbours, axis=0)
-    sigma = 1.4826 * np.median(np.abs(d - np.median(d)))
-    return (np.abs(d) > JUMP_MADS * sigma) & (np.abs(d) > JUMP_SPAN * span)
-
-
 def spike_check(counts: Mapping[str, Mapping[str, Any]], refuse: bool,
                 labels: Mapping[str, str]) -> Check:
-    """Judge one run's spike counts (per column, from :meth:`Spikes.counts`)."""
+    """Judge one run's spike counts (per column, from ``spikes.Spikes.counts``)."""
     parts, failed, suspects = [], False, []
     total = 0
     for col, c in counts.items():
@@ -223,88 +225,145 @@ def _label_of(column: str, labels: Mapping[str, str]) -> str:
     return labels.get(quantity, quantity)
 
 
-def drop_spikes_on_grid(table: pd.DataFrame, vessel: Vessel) -> dict[str, dict[str, Any]]:
-    """
-    Drop the spikes of a resampled run table in place and refill them from neighbours.
-
-    For tables already on the vessel's grid (bags): states are interpolated linearly
-    over the dropped samples, actuators held from the previous sample -- what
-    resampling would have given without them. Returns counts per column.
-    """
-    counts = {}
-    t = table['t'].to_numpy(float)
-    for col in vessel.states + vessel.actuator_names:
-        values = table[col].to_numpy(float, copy=True)
-        spikes = find_spikes(col, values, vessel)
-        counts[col] = spikes.counts()
-        mask = spikes.mask
-        if not mask.any() or mask.all():
-            continue
-        good = np.nonzero(~mask)[0]
-        if col in vessel.states:
-            values[mask] = np.interp(t[mask], t[good], values[good])
-        else:
-            prev = np.maximum(np.searchsorted(good, np.nonzero(mask)[0]) - 1, 0)
-            values[mask] = values[good[prev]]
-        table[col] = values
-    return counts
-
-
 # ----------------------------------------------------------------- consistency
-def consistency_checks(table: pd.DataFrame, vessel: Vessel, labels: Mapping[str, str],
-                       derived: Sequence[str] = ()) -> list[Check]:
-    """
-    Compare one run's velocities and rates with the derivatives of its pose.
-
-    ``table`` holds the vessel's dataset columns; ``derived`` names state columns the
-    converter differentiated itself (their check would be circular and is skipped).
-    """
+def consistency_checks(table: pd.DataFrame, topic_map: TopicMap, ctx: Context
+                       ) -> list[Check]:
+    """Compare one run's velocities, heading and rates with the derivatives of its pose."""
+    vessel = topic_map.vessel
+    labels = ctx.labels
     t = table['t'].to_numpy(float)
     col = {c: table[c].to_numpy(float) for c in table.columns}
     phi = col['phi'] if vessel.has_roll else np.zeros_like(t)
-    width = max(1, int(round(SMOOTH_S * vessel.rate_hz))) | 1
-    if len(t) < max(width, 3):
+
+    def width(what: str) -> int:
+        seconds = max([SMOOTH_S] + [ctx.scales.get(q, 0.0) for q in SCALES_OF[what]])
+        return max(1, int(round(seconds * vessel.rate_hz))) | 1
+
+    w_vel, w_head = width('velocity'), width('heading')
+    if len(t) < max(w_head, 3):
         return [Check('velocity vs d(position)/dt', None, '', True, None,
                       f'skipped: {len(t)} samples are too few')]
+    track = 'track' in ctx.derived
     north, east, _ = kinematics(col['u'], col['v'], col['r'], phi, col['psi'])
-    a = np.stack([_smooth(north, width), _smooth(east, width)])
-    b = np.stack([_smooth(np.gradient(col['x'], t), width),
-                  _smooth(np.gradient(col['y'], t), width)])
-    speed = np.hypot(*b)
-    moving = speed > MOVING * np.percentile(speed, 95)
-    checks = [_velocity(_sums(a[:, moving].ravel(), b[:, moving].ravel()), labels)]
-    ang_a = np.arctan2(a[1], a[0])
-    ang_b = np.arctan2(b[1], b[0])
-    course = np.degrees(np.angle(np.exp(1j * (ang_a - ang_b))))[moving]
-    checks.append(_course({'kind': 'course', 'n': int(moving.sum()),
-                           'sum_sq': float(np.sum(course ** 2)),
-                           'speed_sq': float(np.sum(speed[moving] ** 2))}, labels))
-    # Folded about the beam (|u|): going astern is no drift, a heading 90 deg off is.
-    drift = np.degrees(np.arctan2(_smooth(col['v'], width),
-                                  np.abs(_smooth(col['u'], width))))[moving]
-    checks.append(_drift({'kind': 'drift', 'n': int(moving.sum()),
-                          'sum_sq': float(np.sum(drift ** 2)),
-                          'speed_sq': float(np.sum(speed[moving] ** 2))}, labels))
-    if 'r' in derived:
+
+    def earth(w: int):
+        """Velocity rotated to NED and d(position)/dt, smoothed; speed; moving samples."""
+        a = np.stack([_smooth(north, w), _smooth(east, w)])
+        b = np.stack([_smooth(np.gradient(col['x'], t), w),
+                      _smooth(np.gradient(col['y'], t), w)])
+        speed = np.hypot(*b)
+        return a, b, speed, speed > MOVING * np.percentile(speed, 95)
+
+    checks = []
+    if not track:
+        a, b, _, moving = earth(w_vel)
+        checks.append(_velocity(_sums(a[:, moving].ravel(), b[:, moving].ravel()), labels))
+    a, b, speed, moving = earth(w_head)
+    course = np.degrees(np.angle(np.exp(1j * (np.arctan2(a[1], a[0])
+                                              - np.arctan2(b[1], b[0])))))[moving]
+    course_stats = _angles('course', course, speed[moving])
+    lags = _lags(t, col, phi, ctx, w_vel, w_head, b, moving, vessel.rate_hz)
+    # A lag shorter than a sample period (the grid's or the recording's) is no lag.
+    lags['tolerance_s'] = max(1.0 / vessel.rate_hz, ctx.interval_s)
+    checks.append(_timing(lags, ctx, vessel.rate_hz))
+    if track:
+        checks.append(Check('course of velocity vs of d(position)/dt', None, '', True, None,
+                            'skipped: the velocities come from the track'))
+    else:
+        checks.append(_course(course_stats, labels))
+    mean_speed = float(speed[moving].mean()) if moving.any() else 0.0
+    w_turn = max(w_head, int(round(TURN_LENGTHS * ctx.length_m / max(mean_speed, MIN_SPEED)
+                                   * vessel.rate_hz)) | 1)
+    checks.append(_turn(t, col, earth(w_turn)[1], moving, w_turn, labels))
+    checks.append(_drift(t, col, speed, moving, w_head, ctx))
+    if 'r' in ctx.derived:
         checks.append(Check('yaw_rate vs d(heading)/dt', None, '', True, None,
                             'skipped: the yaw rate was differentiated from the heading'))
     else:
+        w = width('yaw_rate')
         # psi' = r cos(phi) (integrator.kinematics), so compare that with d(psi)/dt.
         checks.append(_rate('yaw_rate', 'heading', _sums(
-            _smooth(col['r'] * np.cos(phi), width),
-            _smooth(np.gradient(col['psi'], t), width)), labels))
+            _smooth(col['r'] * np.cos(phi), w), _smooth(np.gradient(col['psi'], t), w)),
+            labels))
     if vessel.has_roll:
-        if 'p' in derived:
+        if 'p' in ctx.derived:
             checks.append(Check('roll_rate vs d(roll)/dt', None, '', True, None,
                                 'skipped: the roll rate was differentiated from the roll'))
         else:
+            w = width('roll_rate')
             checks.append(_rate('roll_rate', 'roll', _sums(
-                _smooth(col['p'], width), _smooth(np.gradient(phi, t), width)), labels))
+                _smooth(col['p'], w), _smooth(np.gradient(phi, t), w)), labels))
+    if 'sog' in ctx.extras:
+        sog = _smooth(np.asarray(ctx.extras['sog'], float), w_vel)
+        track_speed = np.hypot(_smooth(np.gradient(col['x'], t), w_vel),
+                               _smooth(np.gradient(col['y'], t), w_vel))
+        checks.append(_speed_over_ground(_sums(sog, track_speed), labels))
     return checks
+
+
+def _lags(t, col, phi, ctx: Context, w_vel: int, w_head: int, b_head, moving,
+          rate_hz: float) -> dict[str, Any]:
+    """Cost curves of the three lags (``timing``), or None where not measurable."""
+    ks = timing.shifts(rate_hz)
+    out: dict[str, Any] = {}
+    if 'track' not in ctx.derived:
+        speed_v = _smooth(np.hypot(col['u'], col['v'] * np.cos(phi)), w_vel)
+        speed_p = _smooth(np.hypot(np.gradient(col['x'], t), np.gradient(col['y'], t)),
+                          w_vel)
+        out['position'] = timing.cost_curve(speed_v, speed_p, ks)
+    # The heading the velocity implies: the track's course less the body drift angle.
+    implied = np.arctan2(b_head[1], b_head[0]) - np.arctan2(_smooth(col['v'], w_head),
+                                                            _smooth(col['u'], w_head))
+    implied = np.where(moving, implied, np.nan)
+    out['heading'] = timing.cost_curve(implied, col['psi'], ks, angle=True)
+    if 'r' not in ctx.derived:
+        w = max(w_head, 1)
+        out['yaw_rate'] = timing.cost_curve(_smooth(np.gradient(col['psi'], t), w),
+                                            _smooth(col['r'] * np.cos(phi), w), ks)
+    return out
+
+
+def _timing(curves: Mapping[str, Any], ctx: Context, rate_hz: float,
+            judge: bool = False) -> Check:
+    """
+    Report the lags; judge them only over all runs (``judge``: a short run is noisy).
+
+    Fails when a lag exceeds a sample period (``tolerance_s``); the message gives the
+    map entries with the ``delay_s`` that would remove it.
+    """
+    name = 'timing of position, heading, yaw_rate vs velocity'
+    tol = curves['tolerance_s']
+    expected = f'lags within {tol:.3g} s'
+    lags = {q: timing.best_shift(curves[q], rate_hz) for q in timing.QUANTITIES
+            if q in curves}
+    detail = {'kind': 'timing', 'rate_hz': rate_hz, **curves}
+    found = {q: v for q, v in lags.items() if v is not None}
+    if not found:
+        return Check(name, None, expected, True, None,
+                     'skipped: no lag is measurable (too little turning or speed change)',
+                     detail)
+    text = ', '.join(f'{q} {v:+.2f} s' for q, v in found.items())
+    worst = max(abs(v) for v in found.values())
+    if worst <= tol or not judge:
+        verdict = 'ok' if worst <= tol else 'judged over all runs'
+        return Check(name, worst, expected, True, None, f'{text} -> {verdict}', detail)
+    delays = timing.delays(lags)
+    suggest = []
+    for q in ('velocity', 'position', 'heading', 'yaw_rate'):
+        for label, current in ctx.entries.get(q, ()):
+            new = round(current + delays[q], 2)
+            if abs(new - current) > 0.5 * tol:
+                suggest.append(f'{label}: delay_s: {new:g}')
+    suspects = ', '.join(s.split(':')[0] for s in suggest) or None
+    return Check(name, worst, expected, False, suspects,
+                 f'{text} (position and heading behind the velocity, yaw rate behind the '
+                 f'heading) -> the stamps are late; suggested map entries: '
+                 f'{"; ".join(suggest)}', detail)
 
 
 def _smooth(x: np.ndarray, width: int) -> np.ndarray:
     """Centred moving average (edges: shorter windows); both sides get the same filter."""
+    width = min(width, len(x) - 1 + len(x) % 2)  # odd, and no longer than the signal
     if width <= 1:
         return np.asarray(x, float)
     kernel = np.ones(width)
@@ -326,54 +385,154 @@ def _regression(stats: Mapping[str, float]) -> tuple[float, float]:
     return slope, corr
 
 
-def _velocity(stats: dict, labels: Mapping[str, str]) -> Check:
-    name = 'velocity vs d(position)/dt'
+def _judge_slope(name: str, stats: dict, floor: float, floor_text: str, explain
+                 ) -> Check:
+    """
+    Judge a regression through the origin: slope 1 +- SLOPE_TOL, corr >= MIN_CORR.
+
+    Skipped when the reference's rms is under ``floor`` (``floor_text`` says what); a
+    failure asks ``explain(slope, corr)`` for (suspect, why).
+    """
     expected = f'slope 1 +- {SLOPE_TOL:g}, corr >= {MIN_CORR:g}'
-    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < MIN_SPEED:
-        return Check(name, None, expected, True, None,
-                     f'skipped: the vessel moves slower than {MIN_SPEED:g} m/s', stats)
+    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < floor:
+        return Check(name, None, expected, True, None, f'skipped: {floor_text}', stats)
     slope, corr = _regression(stats)
     figures = f'slope {slope:.3f}, corr {corr:.3f}'
     if abs(slope - 1) <= SLOPE_TOL and corr >= MIN_CORR:
         return Check(name, slope, expected, True, None, f'{figures} -> ok', stats)
-    suspect, why = _explain(slope, corr, 'velocity', 'speed', 'position', 'length', labels)
-    if why is None:
-        suspect = f'{labels["velocity"]}, {labels["position"]}'
-        why = (f'velocity and position disagree: velocity frame or axes, position frame '
-               f'(ned/enu) or heading wrong ({suspect}, {labels["heading"]})')
+    suspect, why = explain(slope, corr)
     return Check(name, slope, expected, False, suspect, f'{figures} -> {why}', stats)
 
 
+def _velocity(stats: dict, labels: Mapping[str, str]) -> Check:
+    def explain(slope, corr):
+        suspect, why = _explain(slope, corr, 'velocity', 'speed', 'position', 'length',
+                                labels)
+        if why is None:
+            suspect = f'{labels["velocity"]}, {labels["position"]}'
+            why = (f'velocity and position disagree: velocity frame or axes, position '
+                   f'frame (ned/enu) or heading wrong ({suspect}, {labels["heading"]})')
+        return suspect, why
+
+    return _judge_slope('velocity vs d(position)/dt', stats, MIN_SPEED,
+                        f'the vessel moves slower than {MIN_SPEED:g} m/s', explain)
+
+
+def _speed_over_ground(stats: dict, labels: Mapping[str, str]) -> Check:
+    label = labels['speed_over_ground']
+
+    def explain(slope, corr):
+        # The track's speed is noisier than a receiver's: name a slip within 10 %.
+        found = [what for ratio, what in UNIT_SLIPS['speed'].items()
+                 if abs(slope / ratio - 1) <= 0.1]
+        return label, (f'speed over ground looks like {" or ".join(found)} (map entry '
+                       f'{label})' if found else
+                       f'speed over ground does not follow the track ({label})')
+
+    return _judge_slope('speed over ground vs the track', stats, MIN_SPEED,
+                        f'the vessel moves slower than {MIN_SPEED:g} m/s', explain)
+
+
 def _course(stats: dict, labels: Mapping[str, str]) -> Check:
-    return _angle_rms(
-        stats, 'course of velocity vs of d(position)/dt', MAX_COURSE_DEG, 'rms difference',
+    return _angle_median(
+        stats, 'course of velocity vs of d(position)/dt', MAX_COURSE_DEG, 'median difference',
         2, labels['velocity'],
         f'the velocity points elsewhere than the track: earth-frame velocities mapped as '
-        f'body (surge/sway), swapped or sign-flipped components ({labels["velocity"]}), or '
-        f'a wrong heading or position frame ({labels["heading"]}, {labels["position"]})')
+        f'body (surge/sway), swapped or sign-flipped components ({labels["velocity"]}), a '
+        f'wrong heading or position frame ({labels["heading"]}, {labels["position"]}), or '
+        f'a lag (the timing check over all runs says which)')
 
 
-def _drift(stats: dict, labels: Mapping[str, str]) -> Check:
-    return _angle_rms(
-        stats, 'drift angle atan2(v, |u|)', MAX_DRIFT_DEG, 'rms', 1, labels['heading'],
-        f'the bow points far from the track: heading convention or unit wrong '
-        f'({labels["heading"]}), or surge/sway swapped ({labels["velocity"]}); legitimate '
-        f'only for a vessel moving sideways (then --accept-checks)',
-        expected_suffix=' under way')
+def _turn(t, col, b, moving, w: int, labels: Mapping[str, str]) -> Check:
+    """Check that the heading turns with the track: course rate against d(psi)/dt."""
+    name = 'heading rate vs course rate'
+    expected = f'slope {1 / TURN_RATIO:.2g}..{TURN_RATIO:g}, corr >= {TURN_MIN_CORR:g}'
+    # The course's rate from the track's velocity and acceleration (no unwrapping), the
+    # noisy side: regressed on the heading rate; both zero where the vessel is still.
+    speed_sq = np.maximum(b[0] ** 2 + b[1] ** 2, 1e-12)
+    course_rate = (b[0] * np.gradient(b[1], t) - b[1] * np.gradient(b[0], t)) / speed_sq
+    a = _smooth(np.where(moving, course_rate, 0.0), w)
+    heading_rate = _smooth(np.where(moving, np.gradient(col['psi'], t), 0.0), w)
+    stats = {**_sums(a, heading_rate), 'kind': 'turn'}
+    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < MIN_RATE:
+        return Check(name, None, expected, True, None,
+                     f'skipped: the heading turns slower than {math.degrees(MIN_RATE):g} '
+                     f'deg/s', stats)
+    return _judge_turn(stats, labels)
 
 
-def _angle_rms(stats: dict, name: str, limit_deg: float, label: str, digits: int,
-               suspect: str, why: str, expected_suffix: str = '') -> Check:
-    """Pass when the rms of an angle (deg) over moving samples stays under ``limit_deg``."""
-    expected = f'rms < {limit_deg:g} deg{expected_suffix}'
+def _judge_turn(stats: dict, labels: Mapping[str, str], judge: bool = False) -> Check:
+    """Judge the turn over all runs only (``judge``): a zig-zag's drift swings widely."""
+    name = 'heading rate vs course rate'
+    expected = f'slope {1 / TURN_RATIO:.2g}..{TURN_RATIO:g}, corr >= {TURN_MIN_CORR:g}'
+    slope, corr = _regression(stats)
+    figures = f'slope {slope:.3f}, corr {corr:.3f}'
+    if 1 / TURN_RATIO <= slope <= TURN_RATIO and corr >= TURN_MIN_CORR:
+        return Check(name, slope, expected, True, None, f'{figures} -> ok', stats)
+    if not judge:
+        return Check(name, slope, expected, True, None, f'{figures} -> judged over all runs',
+                     stats)
+    label = labels['heading']
+    # A heading r times the truth turns the slope (course per heading) into 1/r.
+    found = [what for ratio, what in UNIT_SLIPS['angle'].items()
+             if slope and _near(1 / abs(slope), ratio)]
+    if slope < 0:
+        why = (f'the heading turns against the track: heading convention (north_clockwise '
+               f'vs east_counterclockwise) or sign ({label})')
+    elif found:
+        why = f'heading looks like {" or ".join(found)} (map entry {label})'
+    else:
+        why = f'the heading does not turn with the track: wrong column or unit ({label})'
+    return Check(name, slope, expected, False, label, f'{figures} -> {why}', stats)
+
+
+def _drift(t, col, speed, moving, w: int, ctx: Context) -> Check:
+    """Drift angle while running straight (turning radius over 10 lengths)."""
+    u, v, r = (_smooth(col[c], w) for c in ('u', 'v', 'r'))
+    straight = moving & (np.abs(r) * ctx.length_m < STRAIGHT * np.maximum(speed, 1e-9))
+    # Folded about the beam (|u|): going astern is no drift, a heading 90 deg off is.
+    drift = np.degrees(np.arctan2(v, np.abs(u)))[straight]
+    dt = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    stats = {**_angles('drift', drift, speed[straight]), 'seconds': dt * straight.sum()}
+    return _judge_drift(stats, ctx.labels)
+
+
+def _angles(kind: str, degrees: np.ndarray, speed: np.ndarray) -> dict[str, Any]:
+    """Return sums of an angle for pooling: |angle| histogram, count, speed squares."""
+    counts, _ = np.histogram(np.minimum(np.abs(degrees), ANGLE_BINS[-1]), ANGLE_BINS)
+    return {'kind': kind, 'n': int(len(degrees)), 'hist': counts.tolist(),
+            'speed_sq': float(np.sum(speed ** 2))}
+
+
+def _judge_drift(stats: dict, labels: Mapping[str, str]) -> Check:
+    name = 'drift angle atan2(v, |u|) running straight'
+    if stats['seconds'] < MIN_STRAIGHT_S:
+        return Check(name, None, f'median < {MAX_DRIFT_DEG:g} deg', True, None,
+                     f'skipped: {stats["seconds"]:.1f} s of straight running (radius over '
+                     f'{1 / STRAIGHT:g} lengths) are too few', stats)
+    return _angle_median(
+        stats, name, MAX_DRIFT_DEG, 'median', 1, labels['heading'],
+        f'the bow points far from the track while running straight: heading convention, '
+        f'offset or unit wrong ({labels["heading"]}), or surge/sway swapped '
+        f'({labels["velocity"]}); legitimate only for a vessel moving sideways (then '
+        f'--accept-checks)')
+
+
+def _angle_median(stats: dict, name: str, limit_deg: float, label: str, digits: int,
+                  suspect: str, why: str) -> Check:
+    """Pass when the median |angle| (deg) over moving samples stays under ``limit_deg``."""
+    expected = f'median < {limit_deg:g} deg'
     if not _moving(stats):
         return Check(name, None, expected, True, None,
                      f'skipped: the vessel moves slower than {MIN_SPEED:g} m/s', stats)
-    rms = math.sqrt(stats['sum_sq'] / stats['n'])
-    figures = f'{label} {rms:.{digits}f} deg'
-    if rms < limit_deg:
-        return Check(name, rms, expected, True, None, f'{figures} -> ok', stats)
-    return Check(name, rms, expected, False, suspect, f'{figures} -> {why}', stats)
+    cum = np.cumsum(stats['hist'])
+    i = int(np.searchsorted(cum, 0.5 * cum[-1]))
+    median = float(ANGLE_BINS[i + 1])  # the bin's upper edge: never flatters
+    p95 = float(ANGLE_BINS[int(np.searchsorted(cum, 0.95 * cum[-1])) + 1])
+    figures = f'{label} {median:.{digits}f} deg (95 % below {p95:.{digits}f})'
+    if median < limit_deg:
+        return Check(name, median, expected, True, None, f'{figures} -> ok', stats)
+    return Check(name, median, expected, False, suspect, f'{figures} -> {why}', stats)
 
 
 def _moving(stats: Mapping[str, float]) -> bool:
@@ -381,23 +540,17 @@ def _moving(stats: Mapping[str, float]) -> bool:
 
 
 def _rate(rate: str, angle: str, stats: dict, labels: Mapping[str, str]) -> Check:
-    name = f'{rate} vs d({angle})/dt'
-    stats = {**stats, 'rate': rate, 'angle': angle}
-    expected = f'slope 1 +- {SLOPE_TOL:g}, corr >= {MIN_CORR:g}'
-    if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < MIN_RATE:
-        return Check(name, None, expected, True, None,
-                     f'skipped: the {angle} changes slower than '
-                     f'{math.degrees(MIN_RATE):g} deg/s', stats)
-    slope, corr = _regression(stats)
-    figures = f'slope {slope:.3f}, corr {corr:.3f}'
-    if abs(slope - 1) <= SLOPE_TOL and corr >= MIN_CORR:
-        return Check(name, slope, expected, True, None, f'{figures} -> ok', stats)
-    suspect, why = _explain(slope, corr, rate, 'rate', angle, 'angle', labels)
-    if why is None:
-        suspect = labels[rate]
-        why = (f'{rate} does not follow the {angle}: wrong column for {rate} or {angle} '
-               f'({labels[rate]}, {labels[angle]})')
-    return Check(name, slope, expected, False, suspect, f'{figures} -> {why}', stats)
+    def explain(slope, corr):
+        suspect, why = _explain(slope, corr, rate, 'rate', angle, 'angle', labels)
+        if why is None:
+            suspect = labels[rate]
+            why = (f'{rate} does not follow the {angle}: wrong column for {rate} or '
+                   f'{angle} ({labels[rate]}, {labels[angle]})')
+        return suspect, why
+
+    return _judge_slope(f'{rate} vs d({angle})/dt', {**stats, 'rate': rate, 'angle': angle},
+                        MIN_RATE, f'the {angle} changes slower than '
+                        f'{math.degrees(MIN_RATE):g} deg/s', explain)
 
 
 def _explain(slope: float, corr: float, a: str, a_kind: str, b: str, b_kind: str,
@@ -427,31 +580,15 @@ def _near(value: float, ratio: float) -> bool:
 
 
 # ----------------------------------------------------------------- runs and pooling
-def check_run(table: pd.DataFrame, vessel: Vessel, labels: Mapping[str, str],
-              spikes: Mapping[str, Mapping[str, Any]], derived: Sequence[str] = (),
-              refuse_spikes: bool = False) -> list[Check]:
-    """Return every check of one run: consistency, then spikes (counted by the caller)."""
-    return consistency_checks(table, vessel, labels, derived) + [
-        spike_check(spikes, refuse_spikes, labels)]
-
-
-def check_runs(runs: Mapping[str, pd.DataFrame], vessel: Vessel,
-               labels: Mapping[str, str] = TOPIC_LABELS,
-               refuse_spikes: bool = False) -> dict[str, list[Check]]:
-    """
-    Check resampled run tables (bags): drop their spikes in place, then check each.
-
-    Returns the checks per run id; :func:`aggregate` pools them.
-    """
-    out = {}
-    for run_id, table in runs.items():
-        counts = drop_spikes_on_grid(table, vessel)
-        out[run_id] = check_run(table, vessel, labels, counts, refuse_spikes=refuse_spikes)
-    return out
-
-
-def aggregate(per_run: Mapping[str, Sequence[Check]], labels: Mapping[str, str]
+def check_run(table: pd.DataFrame, topic_map: TopicMap, ctx: Context,
+              spikes: Mapping[str, Mapping[str, Any]], refuse_spikes: bool = False
               ) -> list[Check]:
+    """Return every check of one run: consistency, then spikes (counted by the converter)."""
+    return consistency_checks(table, topic_map, ctx) + [
+        spike_check(spikes, refuse_spikes, ctx.labels)]
+
+
+def aggregate(per_run: Mapping[str, Sequence[Check]], ctx: Context) -> list[Check]:
     """Pool the checks of many runs into one per check name (sums, not averages)."""
     pooled: dict[str, dict] = {}
     refuse = False
@@ -473,50 +610,75 @@ def aggregate(per_run: Mapping[str, Sequence[Check]], labels: Mapping[str, str]
                     have['dropped'] = have['dropped'] and n['dropped']
                 continue
             for k, v in c.detail.items():
-                if isinstance(v, (int, float)) and not isinstance(v, bool):
+                if k == 'hist':
+                    acc[k] = [x + y for x, y in zip(acc.get(k, [0] * len(v)), v, strict=True)]
+                elif isinstance(v, Mapping) and 'sum_sq' in v:  # a timing cost curve
+                    cur = acc.setdefault(k, {'sum_sq': [0.0] * len(v['sum_sq']),
+                                             'n': [0] * len(v['n'])})
+                    cur['sum_sq'] = [x + y for x, y in zip(cur['sum_sq'], v['sum_sq'],
+                                                           strict=True)]
+                    cur['n'] = [x + y for x, y in zip(cur['n'], v['n'], strict=True)]
+                elif k == 'tolerance_s':
+                    acc[k] = max(acc.get(k, 0.0), v)
+                elif isinstance(v, (int, float)) and not isinstance(v, bool) and \
+                        k != 'rate_hz':
                     acc[k] = acc.get(k, 0) + v
                 else:
                     acc[k] = v
     out = []
     for name, stats in pooled.items():
-        kind = stats['kind']
-        if kind == 'spikes':
-            out.append(spike_check(stats['columns'], refuse, labels))
-        elif kind == 'course':
-            out.append(_course(stats, labels))
-        elif kind == 'drift':
-            out.append(_drift(stats, labels))
-        elif name.startswith('velocity'):
-            out.append(_velocity(stats, labels))
-        else:
-            out.append(_rate(stats['rate'], stats['angle'], stats, labels))
+        out.append(_judge(name, stats, refuse, ctx))
     return out
 
 
-def report(per_run: Mapping[str, Sequence[Check]], labels: Mapping[str, str],
+def _judge(name: str, stats: dict, refuse: bool, ctx: Context) -> Check:
+    kind = stats['kind']
+    labels = ctx.labels
+    if kind == 'spikes':
+        return spike_check(stats['columns'], refuse, labels)
+    if kind == 'course':
+        return _course(stats, labels)
+    if kind == 'drift':
+        return _judge_drift(stats, labels)
+    if kind == 'timing':
+        return _timing(stats, ctx, stats['rate_hz'], judge=True)
+    if kind == 'turn':
+        return _judge_turn(stats, labels, judge=True)
+    if name.startswith('velocity'):
+        return _velocity(stats, labels)
+    if name.startswith('speed over ground'):
+        return _speed_over_ground(stats, labels)
+    return _rate(stats['rate'], stats['angle'], stats, labels)
+
+
+def report(per_run: Mapping[str, Sequence[Check]], ctx: Context,
            stream: TextIO) -> tuple[bool, dict[str, Any]]:
     """
     Print one line per check and run, then the pooled lines; return (all ok, manifest data).
 
-    A run fails when any of its checks fails; the pooled lines only summarise.
+    A run fails when any of its checks fails; timing and the turn are judged over all
+    runs only (``POOLED``: one run is too short or too oscillatory), so their pooled
+    lines can fail the whole conversion.
     """
     ok = True
     for run_id, checks in per_run.items():
         for c in checks:
             print(f'{run_id}: {c.line()}', file=stream)
             ok = ok and c.ok
-    pooled = aggregate(per_run, labels)
-    if len(per_run) > 1:
-        for c in pooled:
+    pooled = aggregate(per_run, ctx)
+    for c in pooled:
+        if len(per_run) > 1 or c.detail.get('kind') in POOLED:
             print(f'all runs: {c.line()}', file=stream)
-    failed = sorted({c.name for checks in per_run.values() for c in checks if not c.ok})
+    failed = sorted({c.name for checks in per_run.values() for c in checks if not c.ok}
+                    | {c.name for c in pooled if not c.ok and c.detail.get('kind') in POOLED})
+    ok = not failed
     data = {'ok': ok, 'failed': failed,
             'runs': {r: [c.to_dict() for c in checks] for r, checks in per_run.items()},
             'all': [c.to_dict() for c in pooled]}
     return ok, data
 
 
-def gate(per_run: Mapping[str, Sequence[Check]], labels: Mapping[str, str], accept: bool,
+def gate(per_run: Mapping[str, Sequence[Check]], ctx: Context, accept: bool,
          refuse_spikes: bool, stream: TextIO) -> tuple[bool, dict[str, Any]]:
     """
     Print the checks and decide whether to write: (go on, manifest data).
@@ -524,7 +686,7 @@ def gate(per_run: Mapping[str, Sequence[Check]], labels: Mapping[str, str], acce
     Failed checks stop the conversion unless ``accept``; spikes under ``refuse_spikes``
     stop it regardless.
     """
-    ok, data = report(per_run, labels, stream)
+    ok, data = report(per_run, ctx, stream)
     if ok:
         return True, data
     failed = ', '.join(data['failed'])
@@ -535,19 +697,3 @@ def gate(per_run: Mapping[str, Sequence[Check]], labels: Mapping[str, str], acce
     print(f'warning: map checks failed ({failed}); writing anyway (--accept-checks)',
           file=stream)
     return True, data
-
-
-def check_bag_results(results: Sequence[Any], vessel: Vessel, accept: bool,
-                      refuse_spikes: bool, stream: TextIO) -> bool:
-    """
-    Check the runs of ``convert.BagResult`` objects before they are written.
-
-    Drops spikes in the run tables, prints the checks, stores each bag's in its report
-    (so in the manifest) and returns whether to write.
-    """
-    runs = {run_id: table for r in results for run_id, table in r.runs.items()}
-    go_on, data = gate(check_runs(runs, vessel, TOPIC_LABELS, refuse_spikes), TOPIC_LABELS,
-                       accept, refuse_spikes, stream)
-    for r in results:
-        r.report['checks'] = {run_id: data['runs'][run_id] for run_id in r.runs}
-    return go_on

@@ -8,33 +8,39 @@ Two steps around resampling:
   (angles must be unwrapped before they are interpolated), a wind speed and angle
   become a velocity vector.
 * ``to_columns`` works on one run's resampled grid and produces the vessel's dataset
-  columns: body velocities in FRD (roll only where the vessel models it), position
-  north/east of the run's start, its actuators, and, where it has a wind input, the
-  wind's speed and direction relative to the bow.
+  columns: body velocities in FRD (measured in the body, or earth-frame velocities
+  ``vel_north``/``vel_east`` rotated into it by the heading), roll only where the vessel
+  models it, position north/east of the run's start (latitude/longitude projected with
+  pyproj), its actuators, and, where it has a wind input, the wind's speed and
+  direction relative to the bow.
 
 Every ENU/FLU <-> NED/FRD change goes through ``vessel_physics.frames``, the one place
 that defines it; this module only chooses which conversion a topic map's frame tag
-asks for.
+asks for (``model_column`` does it sample by sample, for the spike policy).
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import lru_cache
 import math
 
 import numpy as np
+from pyproj import Transformer
 
 from vessel_physics import frames
 
 from .extract import TopicSamples
 from .topic_map import ACTUATOR_PREFIX, TopicMap
 
-# WGS 84 ellipsoid, for projecting latitude/longitude onto a local north/east plane.
-WGS84_A_M = 6378137.0
-WGS84_F = 1.0 / 298.257223563
-
-# Group of each channel ``derive`` creates (for its resampling method).
-DERIVED_GROUP = {'phi': 'attitude', 'psi': 'attitude', 'wind_x': 'wind', 'wind_y': 'wind'}
+# Group of each channel ``derive`` (or the converter: rates from angles, velocities from
+# the track) creates, for its resampling method.
+DERIVED_GROUP = {'phi': 'attitude', 'psi': 'attitude', 'wind_x': 'wind', 'wind_y': 'wind',
+                 'yaw_rate': 'body_velocity', 'roll_rate': 'body_velocity',
+                 'vel_north': 'earth_velocity', 'vel_east': 'earth_velocity'}
+# Body channel -> (dataset state, sign of the FLU -> FRD change: frames.twist_flu_to_frd).
+BODY_STATES = {'surge': ('u', 1.0), 'sway': ('v', -1.0), 'roll_rate': ('p', 1.0),
+               'yaw_rate': ('r', -1.0)}
 
 
 def derive(samples: TopicSamples, topic_map: TopicMap) -> TopicSamples:
@@ -55,7 +61,7 @@ def derive(samples: TopicSamples, topic_map: TopicMap) -> TopicSamples:
     if 'roll' in cols:
         cols['phi'] = cols.pop('roll')  # the same angle about the shared x axis
     if 'psi' in cols:
-        cols['psi'] = np.unwrap(cols['psi']) if len(cols['psi']) else cols['psi']
+        cols['psi'] = unwrap(cols['psi'])
     if {'wind_speed', 'wind_from_angle'} <= cols.keys():
         cols['wind_x'], cols['wind_y'] = polar_to_vector(cols.pop('wind_speed'),
                                                          cols.pop('wind_from_angle'))
@@ -64,6 +70,15 @@ def derive(samples: TopicSamples, topic_map: TopicMap) -> TopicSamples:
     return TopicSamples(samples.topic, samples.msgtype, names, samples.t_ns, values,
                         received=samples.received, dropped=samples.dropped,
                         unreadable=samples.unreadable)
+
+
+def unwrap(angle: np.ndarray) -> np.ndarray:
+    """Unwrap an angle across its finite samples only (a NaN would spoil the rest)."""
+    out = np.array(angle, float)
+    ok = np.isfinite(out)
+    if ok.any():
+        out[ok] = np.unwrap(out[ok])
+    return out
 
 
 def polar_to_vector(speed, from_angle) -> tuple[np.ndarray, np.ndarray]:
@@ -80,9 +95,44 @@ def polar_to_vector(speed, from_angle) -> tuple[np.ndarray, np.ndarray]:
 def channel_methods(topic_map: TopicMap) -> dict[str, str]:
     """Resampling method of every channel, derived ones included."""
     out = {leaf.channel: topic_map.resample[leaf.group] for leaf in topic_map.leaves()}
-    out.update({c: topic_map.resample[g] for c, g in DERIVED_GROUP.items()
-                if topic_map.has_group(g)})
+    out.update({c: topic_map.resample.get(g, 'linear') for c, g in DERIVED_GROUP.items()
+                if g != 'wind' or topic_map.has_group(g)})
     return out
+
+
+# Channels ``derive`` makes -> the leaf channels whose entry's delay they take.
+DELAY_FROM = {'psi': ('heading', 'qx'), 'phi': ('roll', 'qx'),
+              'wind_x': ('wind_x', 'wind_speed'), 'wind_y': ('wind_y', 'wind_speed')}
+
+
+def channel_delays(topic_map: TopicMap) -> dict[str, float]:
+    """Delay (s) of every channel, derived ones included: the ``delay_s`` of its entry."""
+    out = {leaf.channel: leaf.delay_s for leaf in topic_map.leaves()}
+    for channel, sources in DELAY_FROM.items():
+        found = [out[c] for c in sources if c in out]
+        if found:
+            out.setdefault(channel, found[0])
+    return out
+
+
+def model_column(channel: str, values: np.ndarray, topic_map: TopicMap
+                 ) -> tuple[str, np.ndarray] | None:
+    """
+    Return the dataset column a channel gives and its values in the model's frame.
+
+    Only channels that are a state or an actuator on their own (sample by sample) have
+    one; others (positions, angles to combine) give None.
+    """
+    vessel = topic_map.vessel
+    if channel in BODY_STATES:
+        state, flu_sign = BODY_STATES[channel]
+        sign = flu_sign if topic_map.frames.get('body_velocity') == 'flu' else 1.0
+        return (state, sign * values) if state in vessel.states else None
+    if channel == 'phi' and vessel.has_roll:
+        return 'phi', values
+    if channel.startswith(ACTUATOR_PREFIX):
+        return channel[len(ACTUATOR_PREFIX):], values
+    return None
 
 
 def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
@@ -95,16 +145,20 @@ def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
     """
     vessel = topic_map.vessel
     out: dict[str, np.ndarray] = {}
-    zero = np.zeros_like(np.asarray(ch['surge'], float))
-    body = (ch['surge'], ch['sway'], ch.get('roll_rate', zero), ch['yaw_rate'])
+    psi = np.asarray(ch['psi'], float)
+    phi = np.asarray(ch['phi'], float) if vessel.has_roll else np.zeros_like(psi)
+    zero = np.zeros_like(psi)
+    surge, sway = ch.get('surge', zero), ch.get('sway', zero)
+    body = (surge, sway, ch.get('roll_rate', zero), ch['yaw_rate'])
     if topic_map.frames['body_velocity'] == 'flu':
         body = frames.twist_flu_to_frd(*body)
     u, v, p, r = (np.asarray(a, float) for a in body)
+    if 'surge' not in ch:  # earth-frame velocities, measured or from the track
+        u, v = earth_to_body(ch['vel_north'], ch['vel_east'], psi, phi)
     out['u'], out['v'], out['r'] = u, v, r
     if vessel.has_roll:
-        out['p'], out['phi'] = p, np.asarray(ch['phi'], float)
+        out['p'], out['phi'] = p, phi
 
-    psi = np.asarray(ch['psi'], float)
     # Unwrapping leaves a multiple of 2 pi; start every run inside [-pi, pi].
     out['psi'] = psi - 2.0 * math.pi * np.round(psi[0] / (2.0 * math.pi))
 
@@ -133,18 +187,33 @@ def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
     return {c: out[c] for c in vessel.dataset_columns[1:]}
 
 
+def earth_to_body(north, east, psi, phi=0.0) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return FRD (u, v) (m/s) whose NED velocity is (north, east) at heading psi, roll phi.
+
+    The inverse of ``vessel_physics.integrator.kinematics``: the horizontal velocity is
+    R(psi) (u, v cos phi).
+    """
+    north, east, psi = (np.asarray(a, float) for a in (north, east, psi))
+    c, s = np.cos(psi), np.sin(psi)
+    return north * c + east * s, (-north * s + east * c) / np.cos(phi)
+
+
 def latlon_to_local(lat_deg, lon_deg) -> tuple[np.ndarray, np.ndarray]:
     """
-    North and east (m) of the first fix, on the plane tangent at that fix.
+    North and east (m) of the first fix, in an azimuthal equidistant projection there.
 
-    Uses the WGS 84 radii of curvature at the first latitude; over the few kilometres
-    of a run the error is far below GNSS noise.
+    pyproj (PROJ) projects on the WGS 84 ellipsoid; over the few kilometres of a run
+    distances and bearings from the first fix are exact to far below GNSS noise.
     """
-    lat, lon = np.radians(np.asarray(lat_deg, float)), np.radians(np.asarray(lon_deg, float))
-    e2 = WGS84_F * (2.0 - WGS84_F)
-    s = math.sin(lat[0])
-    w = math.sqrt(1.0 - e2 * s * s)
-    meridian = WGS84_A_M * (1.0 - e2) / w ** 3
-    prime = WGS84_A_M / w
-    dlon = np.angle(np.exp(1j * (lon - lon[0])))  # across the antimeridian too
-    return (lat - lat[0]) * meridian, dlon * prime * math.cos(lat[0])
+    lat, lon = np.asarray(lat_deg, float), np.asarray(lon_deg, float)
+    east, north = local_projection(float(lat[0]), float(lon[0])).transform(lon, lat)
+    return np.asarray(north, float), np.asarray(east, float)
+
+
+@lru_cache(maxsize=64)
+def local_projection(lat0: float, lon0: float) -> Transformer:
+    """Return the WGS 84 -> local (east, north) m transformer centred on a fix (deg)."""
+    return Transformer.from_crs(
+        'EPSG:4326', f'+proj=aeqd +lat_0={lat0!r} +lon_0={lon0!r} +datum=WGS84 +units=m',
+        always_xy=True)

@@ -44,7 +44,7 @@ TOP_KEYS = ('format', 'name', 'description', 'rate_hz', 'window_s', 'horizon_s',
 REQUIRED_KEYS = ('name', 'rate_hz', 'window_s', 'horizon_s', 'states', 'actuators',
                  'particulars')
 ACTUATOR_KEYS = ('kind', 'unit', 'range', 'description')
-RECORDING_KINDS = ('topics', 'columns')
+RECORDING_KINDS = ('topics', 'columns', 'logs')  # bags, text tables, autopilot logs
 DEFAULT_WATERS = 'open'   # a vessel file that says nothing sails where currents can act
 
 
@@ -453,13 +453,14 @@ def recording_map(vessel: Vessel, kind: str, override: str | os.PathLike | None,
     ``parse(data, vessel)`` builds the map; every error it raises is prefixed with where
     the map came from.
     """
-    label = {'topics': 'topic map', 'columns': 'column map'}[kind]
+    label = {'topics': 'topic map', 'columns': 'column map', 'logs': 'log map'}[kind]
     if override is not None:
         data, where = read_yaml(override, error, label), f'{label} {override}'
     else:
         data, where = vessel.recordings.get(kind), f'vessel {vessel.source}: recordings.{kind}'
         if data is None:
-            carriers = 'topics' if kind == 'topics' else 'columns of a table'
+            carriers = {'topics': 'topics', 'columns': 'columns of a table',
+                        'logs': 'messages of an autopilot log'}[kind]
             raise error(f'{where} is missing: the vessel file says nothing about which '
                         f'{carriers} carry its quantities')
     try:

@@ -151,7 +151,11 @@ def load_mmg_runs(path: str | Path, params_file: str | Path | None = None):
         table = ds.load(run_id)
         runs.append(MmgRun(run_id, splits[run_id], table[list(mmg.STATE_NAMES)].to_numpy(float),
                            table[[kinds['propeller'], kinds['rudder']]].to_numpy(float)))
-    return vessel, mmg.load_mmg(file), str(file), runs
+    try:
+        nominal = mmg.load_mmg(file, vessel.length_m, f'vessel {vessel.name!r}')
+    except ConfigError as exc:
+        raise RecordingsError(str(exc)) from None
+    return vessel, nominal, mmg.display_name(file), runs
 
 
 def uses_mmg(recordings: Sequence[str | Path], physics: str | Path | None) -> bool:

@@ -2,7 +2,7 @@
 Recordings as arrays: datasets or rosbag2 recordings, and the held-out split.
 
 ``load_recordings(paths)`` accepts dataset directories (``vessel_datasets.format``) and
-recordings that ``vessel_datasets.convert`` can read (rosbag2 MCAP directories or files,
+recordings that ``vessel_datasets.pipeline`` can read (rosbag2 MCAP directories or files,
 with the default topic map or a given one). Every failure is a ``RecordingsError`` whose
 message is one line saying what is missing and what it is needed for.
 """
@@ -108,7 +108,8 @@ def _load_dataset(path: Path) -> list[Run]:
 
 def _load_bag(path: Path, topic_map=None) -> list[Run]:
     from vessel_datasets.bag_source import BagError
-    from vessel_datasets.convert import ConversionError, bag_to_runs
+    from vessel_datasets.readers.bags import bag_to_runs
+    from vessel_datasets.sources import ConversionError
     try:
         tables = bag_to_runs(path, topic_map or topic_map_for(DIAGNOSED_VESSEL))
     except (ConversionError, BagError, OSError, ValueError) as exc:

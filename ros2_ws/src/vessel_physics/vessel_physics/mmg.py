@@ -162,6 +162,7 @@ _POSITIVE = ('rho', 'L_pp', 'B', 'd', 'displacement', 'k_zz', 'D_p', 'A_R', 'H_R
              'f_alpha', 'epsilon')
 _FRACTIONS = ('t_P', 'w_P0', 't_R')   # in [0, 1)
 _INFORMATION_KEYS = ('description', 'sources')
+LENGTH_TOL = 0.01   # a file within 1 % of the vessel's length is made for it
 
 
 def _validated(params: MmgParams, source: str = 'mmg') -> MmgParams:
@@ -208,9 +209,55 @@ def find_params_file(name: str | Path, base: Path | None = None) -> Path:
                       f'{", ".join(str(c.parent) for c in candidates)})')
 
 
-def load_mmg(path: str | Path) -> MmgParams:
-    """Load and validate an MMG parameter file."""
-    return params_from_dict(read_yaml(path, 'MMG parameter file'), source=str(path))
+def display_name(path: str | Path) -> str:
+    """Name a parameter file for a report: packaged ones by package, others as given."""
+    path = Path(path)
+    try:
+        return f'vessel_physics/config/{path.resolve().relative_to(config_dir().resolve())}'
+    except ValueError:
+        return str(path)
+
+
+def load_mmg(path: str | Path, length_m: float | None = None,
+             vessel: str = 'the vessel') -> MmgParams:
+    """
+    Load and validate an MMG parameter file; with ``length_m``, for a vessel that long.
+
+    A file states the length it was made for (``L_pp``): one for another length is
+    another scale, refused in one line naming both (``scale_physics`` writes the
+    Froude-scaled file).
+    """
+    params = params_from_dict(read_yaml(path, 'MMG parameter file'), source=str(path))
+    if length_m is not None and abs(params.L_pp / length_m - 1) > LENGTH_TOL:
+        raise ConfigError(f'{path}: made for L_pp {params.L_pp:g} m, but {vessel} is '
+                          f'{length_m:g} m long (particulars.length_m): another scale; write '
+                          f'the Froude-scaled file with `ros2 run vessel_physics '
+                          f'scale_physics {Path(path).name} --length {length_m:g}`')
+    return params
+
+
+# Froude scaling by lambda = L_new / L_old at the same Froude number: per field, the
+# power of lambda it scales with (fields not named are non-dimensional: unchanged).
+FROUDE_POWERS = {'L_pp': 1, 'B': 1, 'd': 1, 'x_G': 1, 'D_p': 1, 'H_R': 1, 'A_R': 2,
+                 'displacement': 3, 'X_0': 3, 'Y_0': 3, 'N_0': 4}
+
+
+def froude_scaled(params: MmgParams, length_m: float, rho: float | None = None
+                  ) -> MmgParams:
+    """
+    Return the parameters of the same hull at ``length_m`` by Froude's law.
+
+    Lengths scale by lambda, areas by lambda^2, volume, mass and forces by lambda^3,
+    moments by lambda^4 (forces and moments also by the density ratio when ``rho``
+    changes); non-dimensional coefficients are unchanged, so inertias follow k_zz L_pp.
+    Speeds then scale by sqrt(lambda), propeller and yaw rates by 1/sqrt(lambda).
+    """
+    lam = length_m / params.L_pp
+    rho = params.rho if rho is None else rho
+    changes = {k: getattr(params, k) * lam ** p for k, p in FROUDE_POWERS.items()}
+    for k in ('X_0', 'Y_0', 'N_0'):
+        changes[k] *= rho / params.rho
+    return _validated(dataclasses.replace(params, rho=rho, **changes))
 
 
 # ---------------------------------------------------------------- kinematic quantities

@@ -87,5 +87,8 @@ def build_mmg(spec: VehicleSpec, params: str | None = None, values: dict | None 
         if not mmg.is_mmg_file(path):
             raise ValueError(f'{KIND}: {path} is not an MMG parameter file (format: '
                              f'{mmg.FORMAT}); use min, pro or physics for 4-DOF hull files')
-        loaded = mmg.load_mmg(path)
+        try:
+            loaded = mmg.load_mmg(path, spec.length_m, f'vessel {spec.name!r}')
+        except ConfigError as exc:
+            raise ValueError(str(exc)) from None
     return MmgModel(spec, loaded, str(source), substeps, terms or mmg.FULL_TERMS)
