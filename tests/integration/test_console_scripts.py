@@ -25,6 +25,7 @@ PROGRAMS = {
     'scale_physics': 'vessel_physics',
     'diagnose': 'vessel_diagnosis',
     'simulate_scenario': 'vessel_diagnosis',
+    'workflow': 'vessel_diagnosis',
     'record': 'vessel_recorder',
     'demo': 'vessel_bringup',
 }

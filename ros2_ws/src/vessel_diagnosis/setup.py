@@ -24,5 +24,6 @@ setup(
     entry_points={'console_scripts': [
         'diagnose = vessel_diagnosis.cli:main',
         'simulate_scenario = vessel_diagnosis.cli_scenario:main',
+        'workflow = vessel_diagnosis.cli_workflow:main',
     ]},
 )

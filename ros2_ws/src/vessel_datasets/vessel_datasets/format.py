@@ -223,12 +223,14 @@ class Dataset:
         Return the run ids of every recording (bag, log file), by recording.
 
         Runs cut from one recording share its conditions, so splits and folds keep them
-        together; a run that names no source is a recording of its own.
+        together (the converters' ``source_run``, or the bag or file of older datasets);
+        a run that names no source is a recording of its own.
         """
         out: dict[str, list[str]] = {}
         for entry in self.manifest['runs']:
             source = entry.get('source') or {}
-            key = str(source.get('bag') or source.get('file') or entry['id'])
+            key = str(source.get('source_run') or source.get('bag') or source.get('file')
+                      or entry['id'])
             out.setdefault(key, []).append(entry['id'])
         return out
 

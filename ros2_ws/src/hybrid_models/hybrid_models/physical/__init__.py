@@ -3,10 +3,11 @@ Physical models: first principles (Min, Pro, MMG), regression (Lin, Hyd, Qua), c
 
 ``build_physical({'kind': 'pro+lin', ...}, spec)`` makes any of them; kinds are written
 like the paper's names in lower case: 'min', 'pro', 'lin', 'hyd', 'qua', 'min+lin', ...
-Kind 'physics' is the first-principles model of a physics file (``physics: PATH``), such
-as the augmented physics the diagnosis writes; 'physics+lin' etc. combine it too. Kind
-'mmg' is the MMG standard model of a 3-DOF single-screw, single-rudder ship
-(``hybrid_models.physical.mmg_model``).
+Kind 'physics' is the first-principles model of a physics file (``physics: PATH``) of any
+family, such as the augmented physics the diagnosis writes; 'physics+lin' etc. combine
+it too. Kind 'mmg' is the MMG standard model of a 3-DOF single-screw, single-rudder ship
+(``hybrid_models.physical.mmg_model``), which an MMG parameter file given to 'physics'
+builds as well.
 """
 
 from __future__ import annotations
@@ -51,6 +52,9 @@ def build_physical(cfg: dict, spec: VehicleSpec) -> PhysicalModel:
     if fp_kind is None:
         return regression
     # Imported here so that regression-only models work without the vessel physics.
+    if fp_kind == 'physics' and _is_mmg_file(cfg.get('physics')):
+        # Kind 'physics' takes any physics file: an MMG parameter file is the MMG model.
+        fp_kind, cfg = 'mmg', {**cfg, 'params': cfg['physics']}
     if fp_kind == 'mmg':
         from hybrid_models.physical.mmg_model import build_mmg
         fp = build_mmg(spec, params=cfg.get('params'), values=cfg.get('mmg'),
@@ -62,3 +66,15 @@ def build_physical(cfg: dict, spec: VehicleSpec) -> PhysicalModel:
                                 physics=cfg.get('physics'),
                                 physics_source=cfg.get('physics_source'))
     return fp if regression is None else CompositeModel(fp, regression)
+
+
+def _is_mmg_file(physics) -> bool:
+    """Tell whether ``physics`` names an MMG parameter file (path or packaged name)."""
+    if not isinstance(physics, str):
+        return False
+    from vessel_physics import mmg
+    from vessel_physics.errors import ConfigError
+    try:
+        return mmg.is_mmg_file(mmg.find_params_file(physics))
+    except ConfigError:
+        return False

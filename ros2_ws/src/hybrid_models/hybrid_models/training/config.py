@@ -47,6 +47,10 @@ DEFAULTS: dict = {
         'window': None,         # initialization window (samples); None: the vessel's
         'sequence_length': 50,  # predicted samples per training sequence (BPTT length)
         'batch_size': 256,
+        # Few recordings give few sequences: the batch shrinks (not below the minimum)
+        # so that an epoch still takes this many optimizer steps.
+        'min_batches_per_epoch': 16,
+        'min_batch_size': 8,
         'grad_clip': 1.0,       # max global gradient norm
         'weight_decay': 0.0,
         'phases': [

@@ -39,6 +39,17 @@ def gather_next(per_run: list, run_index: np.ndarray, t0: np.ndarray,
     return out
 
 
+def batch_size(sequences: int, cfg: dict) -> int:
+    """
+    Return the batch size of an epoch of ``sequences`` training sequences.
+
+    ``batch_size`` unless that leaves fewer than ``min_batches_per_epoch`` optimizer steps
+    per epoch, as a few short recordings do; then smaller, down to ``min_batch_size``.
+    """
+    fit = sequences // max(int(cfg['min_batches_per_epoch']), 1)
+    return int(min(cfg['batch_size'], max(fit, int(cfg['min_batch_size']))))
+
+
 class RecurrentTask(Task):
     """
     Training data and objectives for LSTM and hybrid models.
@@ -75,7 +86,7 @@ class RecurrentTask(Task):
         run_index, t0 = window_index(tiling_starts(self.train, self.cfg['window'], length,
                                                    int(rng.integers(0, length))))
         order = rng.permutation(len(t0))
-        bs = self.cfg['batch_size']
+        bs = batch_size(len(t0), self.cfg)
         for i in range(0, len(order), bs):
             dealt = shard.deal(order[i:i + bs])
             if dealt is None:
