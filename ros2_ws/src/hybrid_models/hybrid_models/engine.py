@@ -52,7 +52,8 @@ DEVICE_COUNT_FLAG = '--xla_force_host_platform_device_count'
 MIN_SHARD = 8   # plans per device below which splitting a batch costs more than it gains
 
 
-def _jax():
+def jax_module():
+    """Return jax, first asking XLA for one host device per core (module docstring)."""
     if 'jax' not in sys.modules and DEVICE_COUNT_FLAG not in os.environ.get('XLA_FLAGS', ''):
         cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else (
             os.cpu_count() or 1)
@@ -63,9 +64,9 @@ def _jax():
     return jax
 
 
-def _compiled_repeat(n, body, x):
+def compiled_repeat(n, body, x):
     """Apply ``body`` n times as one compiled loop (the physics' RK4 sub-steps)."""
-    return _jax().lax.fori_loop(0, n, lambda _i, state: body(state), x)
+    return jax_module().lax.fori_loop(0, n, lambda _i, state: body(state), x)
 
 
 def served_bound(state: dict, model_config: dict,
@@ -92,7 +93,7 @@ class Forecaster:
     def __init__(self, spec: VehicleSpec, model_config: dict, physical: PhysicalModel,
                  state: dict, relative_threshold: float | None = None, dtype=np.float32,
                  model_id: str = '', config: dict | None = None):
-        jax = _jax()
+        jax = jax_module()
         if dtype == np.float64:
             jax.config.update('jax_enable_x64', True)
         self.spec, self.physical, self.dtype = spec, physical, dtype
@@ -157,7 +158,7 @@ class Forecaster:
 
     # ------------------------------------------------------------------ the program
     def _forecast(self, p, z_window, c_window, c_future):
-        jax = _jax()
+        jax = jax_module()
         jnp = jax.numpy
         batch = c_future.shape[0]
         hidden = p['init'][0][1].shape[0]
@@ -174,7 +175,7 @@ class Forecaster:
         z0 = jnp.broadcast_to(z_window[-1], (batch, z_window.shape[-1]))
 
         def physical(z, c):
-            return self.physical.step(z, c, self._physical_arrays, _compiled_repeat)
+            return self.physical.step(z, c, self._physical_arrays, compiled_repeat)
 
         def step(carry, c_t):
             z, recurrent = carry
@@ -204,7 +205,7 @@ class Forecaster:
             c_future = np.concatenate([c_future, pad], axis=0)
         shards = self._shards(padded)
         size = padded // shards
-        jax = _jax()
+        jax = jax_module()
         # Dispatch is asynchronous: every shard is running before the first is read.
         running = [self._compiled(self._device_params[k], *jax.device_put(
             (z_window, c_window, c_future[k * size:(k + 1) * size]), self.devices[k]))

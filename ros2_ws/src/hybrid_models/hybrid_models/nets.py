@@ -89,9 +89,23 @@ class PhysicalModule(nn.Module):
             owner.register_buffer(leaf, tensor.float() if tensor.is_floating_point()
                                   else tensor)
         self.spec, self.kind = model.spec, model.kind
+        self.compiled = None
+
+    def compile(self) -> None:
+        """
+        Run the step as one compiled program with its Jacobian (``compiled_physics``).
+
+        For training on a CPU once the model is fitted: its values are constants of the
+        program, so ``fit`` or a new state dict afterwards needs another ``compile``.
+        """
+        from hybrid_models.compiled_physics import compile_step
+        self.compiled = compile_step(self.numpy_model())
 
     def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
         """Predict the next state with the buffers' values."""
+        if self.compiled is not None:
+            from hybrid_models.compiled_physics import CompiledStep
+            return CompiledStep.apply(z, c, self.compiled)
         return self.model.step(z, c, dict(self.named_buffers()))
 
     def fit(self, z: np.ndarray, c: np.ndarray, z_next: np.ndarray) -> PhysicalModule:

@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 import json
 from pathlib import Path
+import re
 import sys
 
 import numpy as np
@@ -109,8 +110,9 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
 
 
 def run_dir(out: Path, label: str, fold: Fold, seed: int) -> Path:
-    """Return where a (model, fold, seed) training writes."""
-    return Path(out) / 'runs' / label / f'fold{fold.index}' / f'seed{seed}'
+    """Return where a (model, fold, seed) training writes (the label made a folder name)."""
+    folder = re.sub(r'[^A-Za-z0-9_.+-]+', '_', label).strip('_') or 'model'
+    return Path(out) / 'runs' / folder / f'fold{fold.index}' / f'seed{seed}'
 
 
 def train_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],

@@ -75,6 +75,10 @@ DEFAULTS: dict = {
         # auto when the vessel file declares its mirror image (key mirror: a vessel
         # symmetric about its centre plane, actuators included), true, or false.
         'mirror': 'auto',
+        # A hybrid's physical part as one compiled program (JAX) with its Jacobian for
+        # the backward pass (hybrid_models.compiled_physics), on CPUs: the same step,
+        # several times faster for first-principles physics; false: torch's autograd.
+        'compiled_physics': True,
         # Do no harm (hybrid_models.selection): after training, the served relative
         # threshold is chosen on the validation runs among these (0, the physics alone,
         # always included; none above model.relative_threshold when that is set; null:

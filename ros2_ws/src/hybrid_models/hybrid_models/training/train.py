@@ -180,6 +180,9 @@ def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
         group.barrier()
         base.update(phys_info)
     model.to(group.device)
+    if isinstance(model, HybridModel) and tcfg['compiled_physics'] and \
+            group.device.type == 'cpu':
+        model.physical.compile()
     task = RecurrentTask(spec, stores['train'].runs, stores['val'].runs, tcfg, state_norm.std,
                          z_phy_train, z_phy_val, group=group)
     base['parameters'] = sum(p.numel() for p in model.parameters())
