@@ -70,26 +70,26 @@ class ModelPlan:
 
 
 def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
-               val_fraction: float = 0.1) -> list[Fold]:
+               val_fraction: float = 0.1, fold_by: str | None = None) -> list[Fold]:
     """
     Write the fold views under ``out/folds`` and return them.
 
     ``folds`` None keeps the dataset's split (one fold). Otherwise recordings are
-    shuffled with ``seed`` and dealt into ``folds`` test groups; of each fold's other
-    recordings, ``val_fraction`` (at least one) validate and the rest train.
+    shuffled with ``seed`` and dealt into ``folds`` test groups. ``fold_by`` (a regular
+    expression) instead makes one fold per distinct match in the recordings' names, e.g.
+    one per kind of manoeuvre; recordings it does not match always train. Of each fold's
+    other recordings, ``val_fraction`` (at least one) validate and the rest train.
     """
-    if folds is None:
+    if folds is None and fold_by is None:
         splits = [{name: dataset.run_ids(name) for name in ('train', 'val', 'test')}]
+        notes = ["the dataset's own split"]
     else:
         recordings = dataset.recordings()
-        if not 2 <= folds <= len(recordings):
-            raise ValueError(f'folds must be between 2 and the {len(recordings)} '
-                             f'recordings of {dataset.root}, got {folds}')
         if not 0 < val_fraction < 1:
             raise ValueError(f'val_fraction must be in (0, 1), got {val_fraction}')
         names = sorted(recordings)
         order = [names[i] for i in np.random.default_rng(seed).permutation(len(names))]
-        groups = [list(g) for g in np.array_split(np.asarray(order, dtype=object), folds)]
+        groups, notes = _test_groups(order, folds, fold_by, dataset)
         splits = []
         for k, test in enumerate(groups):
             rest = [r for r in order if r not in test]
@@ -100,13 +100,30 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
                                        ('train', rest[n_val:]))}
             splits.append(runs)
     out_folds = []
-    for k, split in enumerate(splits):
+    for k, (split, note) in enumerate(zip(splits, notes, strict=True)):
         path = Path(out) / 'folds' / f'fold{k}'
-        note = (f'fold {k} of {folds} (recordings shuffled with seed {seed})' if folds
-                else "the dataset's own split")
         resplit(dataset, path, split, note)
         out_folds.append(Fold(k, path, *(tuple(split[s]) for s in ('train', 'val', 'test'))))
     return out_folds
+
+
+def _test_groups(order: list[str], folds: int | None, fold_by: str | None,
+                 dataset: Dataset) -> tuple[list[list[str]], list[str]]:
+    """Return the recordings each fold tests, and what each fold is."""
+    if fold_by is not None:
+        pattern = re.compile(fold_by)
+        keys = {rec: m.group(0) for rec in order if (m := pattern.search(Path(rec).name))}
+        kinds = sorted(set(keys.values()))
+        if len(kinds) < 2:
+            raise ValueError(f'--fold-by {fold_by!r} matches {len(kinds)} distinct kinds of '
+                             f'recording in {dataset.root}; it needs at least 2')
+        return ([[rec for rec in order if keys.get(rec) == kind] for kind in kinds],
+                [f'fold of the recordings matching {kind!r} ({fold_by!r})' for kind in kinds])
+    if not 2 <= folds <= len(order):
+        raise ValueError(f'folds must be between 2 and the {len(order)} recordings of '
+                         f'{dataset.root}, got {folds}')
+    groups = [list(g) for g in np.array_split(np.asarray(order, dtype=object), folds)]
+    return groups, [f'fold {k} of {folds} (recordings shuffled)' for k in range(folds)]
 
 
 def run_dir(out: Path, label: str, fold: Fold, seed: int) -> Path:
