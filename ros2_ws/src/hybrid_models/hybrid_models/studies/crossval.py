@@ -181,19 +181,21 @@ def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
                         (fp, name, lambda w=windows, p=model.physical: predict(PhysicsOnly(p),
                                                                               w)))
     true = np.concatenate(targets)
+    # One scale of each state for every model's state error: that of the held-out runs.
+    scale = true.reshape(-1, true.shape[-1]).std(axis=0)
     rows, curves, physics_rows = [], {}, {}
     for m in models:
         metrics = []
         for s in seeds:
             pred = np.concatenate(preds[(m.label, s)])
-            metrics.append(forecast_metrics(pred, true, spec))
+            metrics.append(forecast_metrics(pred, true, spec, state_std=scale))
             curves.setdefault(m.label, []).append(_position_curve(pred, true, spec))
         row = seed_row(m.label, metrics) if len(seeds) > 1 else {
             'label': m.label, 'metrics': metrics[0]}
         row['per_seed_metrics'] = metrics
         if (m.label, seeds[0]) in physics:
-            own = [_physics_pooled(physics[(m.label, s)], true, spec, physics_rows, curves)
-                   for s in seeds]
+            own = [_physics_pooled(physics[(m.label, s)], true, spec, physics_rows, curves,
+                                   scale) for s in seeds]
             row['physics'] = sorted({p['label'] for p in own})
             row['harms_vs_physics'] = [harms(mm['profile'], p['metrics']['profile'])
                                        for mm, p in zip(metrics, own, strict=True)]
@@ -212,7 +214,7 @@ def _position_curve(pred: np.ndarray, true: np.ndarray, spec) -> list[float]:
 
 
 def _physics_pooled(per_fold: list, true: np.ndarray, spec, physics_rows: dict,
-                    curves: dict) -> dict:
+                    curves: dict, scale: np.ndarray) -> dict:
     """Return the pooled row of one seed's physics (per fold), made once per physics."""
     key = tuple(fp for fp, _, _ in per_fold)
     if key not in physics_rows:
@@ -220,7 +222,8 @@ def _physics_pooled(per_fold: list, true: np.ndarray, spec, physics_rows: dict,
         taken = {row['label'] for row in physics_rows.values()}
         label = name if name not in taken else f'{name} [{key[0][:6]}]'
         pred = np.concatenate([forecast() for _, _, forecast in per_fold])
-        physics_rows[key] = {'label': label, 'metrics': forecast_metrics(pred, true, spec),
+        physics_rows[key] = {'label': label,
+                             'metrics': forecast_metrics(pred, true, spec, state_std=scale),
                              'fingerprints': list(key)}
         curves[label] = [_position_curve(pred, true, spec)]
     return physics_rows[key]

@@ -31,7 +31,7 @@ from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import CompositeModel, RegressionModel
 from hybrid_models.run_store import RowFile, RowWriter, build_split
-from hybrid_models.selection import PHYSICS_ALONE, choose, threshold_grid
+from hybrid_models.selection import PHYSICS_ALONE, choose_schedule, threshold_grid
 from hybrid_models.streaming import Moments, RowSample
 from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.distributed import Group, join, leave
@@ -218,18 +218,19 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
     """
     Serve the best epoch at the threshold chosen on validation (``hybrid_models.selection``).
 
-    The model keeps the chosen threshold (its config's ``relative_threshold`` is the cap);
-    the returned record holds the figures of every candidate and of the physics alone.
+    The model keeps the chosen threshold or schedule (its config's ``relative_threshold``
+    is the cap); the returned record holds the figures of every candidate and of the
+    physics alone.
     """
     cap = model.relative_threshold
     grid = threshold_grid(tcfg['selection']['thresholds'], cap)
     std = task.state_std_np
 
-    def figures(threshold):
+    def figures(threshold) -> dict:
         with model.served_at(threshold):
             errors = task.validation_errors(model)
-        return {'relative_threshold': threshold, 'score': errors.score(std),
-                'profile': errors.profile(model.spec)}
+        return {'score': errors.score(std),
+                'profile': errors.profile(model.spec, state_std=std)}
 
     physics = figures(PHYSICS_ALONE)
     if best_epoch == REFERENCE_EPOCH:
@@ -237,7 +238,7 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
                   'reason': 'no epoch forecast the validation runs better than the physics '
                             'alone; the physics alone is served', 'candidates': []}
     else:
-        choice = choose([figures(t) for t in grid], physics)
+        choice = choose_schedule(figures, grid, physics, model.spec.dt)
     model.set_threshold(choice['relative_threshold'])
     print(f"served threshold {choice['relative_threshold']}: {choice['reason']}",
           file=sys.stderr)
