@@ -158,3 +158,22 @@ def test_a_correction_that_helps_on_validation_is_served_bounded(linear):
     assert chosen['relative_threshold'] > 0, chosen['reason']
     assert chosen['score'] < 0.5 * chosen['physics']['score']
     assert model.relative_threshold == chosen['relative_threshold']
+
+
+def test_a_difference_the_validation_runs_cannot_resolve_is_not_harm():
+    rng = np.random.default_rng(0)
+    physics_errors = rng.uniform(0.5, 1.5, (40, 2))
+    noise = physics_errors + rng.normal(0.0, 0.3, (40, 2))
+    noisy = noise - noise.mean(axis=0) + physics_errors.mean(axis=0) + 0.01  # a bit worse
+    clearly = physics_errors + 0.2                                           # always worse
+    base = profile(physics_errors.mean(axis=0), physics_errors.mean(axis=0))
+    per = {'position': physics_errors, 'state': physics_errors}
+
+    def judged(errors, confidence):
+        return harms(profile(errors.mean(axis=0), errors.mean(axis=0)), base, None,
+                     ({'position': errors, 'state': errors}, per), confidence)
+
+    assert judged(noisy, 0.95) == []
+    assert judged(noisy, None) != []           # any worse mean counts without a test
+    assert judged(clearly, 0.95) == ['position at step 1', 'position at step 2',
+                                     'state error at step 1', 'state error at step 2']

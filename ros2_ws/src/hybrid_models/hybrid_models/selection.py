@@ -4,8 +4,13 @@ Do no harm: the relative threshold a hybrid is served with, chosen on validation
 A trained hybrid is forecast on the validation runs at thresholds of a grid that
 includes 0, the physics alone (``hybrid_models.bound``). A forecast is admissible when,
 at every reported step (``hybrid_models.metrics.StepErrors.profile``: every quarter of
-the horizon), neither its mean position error nor its state error (sum over states of
-RMSE / std) is worse than the physics alone's. T = 0 is admissible by construction.
+the horizon), neither its position error nor its state error is worse than the physics
+alone's. T = 0 is admissible by construction. "Worse" is judged forecast by forecast,
+paired with the physics alone's forecast from the same window: the mean difference must
+exceed its standard error times the one-sided normal quantile of ``confidence`` (0.95:
+1.645), so that a difference the validation runs cannot resolve is not called harm
+(overlapping forecasts are correlated, so the standard error is if anything too small,
+and harm too readily found); ``confidence`` None counts any difference of the means.
 
 The threshold may change along the forecast, once per reported step (a schedule,
 ``bound.schedule_of``), chosen quarter by quarter: for the first quarter, the threshold
@@ -22,6 +27,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 import math
+
+import numpy as np
+from scipy.stats import norm
+
+from hybrid_models.metrics import StepErrors, trajectory_errors
 
 PHYSICS_ALONE = 0.0
 
@@ -45,29 +55,64 @@ def threshold_grid(thresholds: Sequence[float | None], cap: float | None) -> lis
     return finite + ([None] if None in grid else [])
 
 
-def harms(profile: dict, physics: dict, until_step: int | None = None) -> list[str]:
+def forecast_figures(pred: np.ndarray, true: np.ndarray, spec, state_std: np.ndarray
+                     ) -> dict:
+    """
+    Return what the selection judges of forecasts (B, H, n_state) against the truth.
+
+    'score' and 'profile' (``metrics.StepErrors``), and per forecast at the reported steps
+    (B, steps) its position error ('position') and state error ('state': sum over states
+    of squared error / std^2), for paired comparisons.
+    """
+    errors = StepErrors.of(pred, true, spec)
+    profile = errors.profile(spec, state_std=state_std)
+    at = np.asarray(profile['steps']) - 1
+    with np.errstate(invalid='ignore', over='ignore'):
+        position = trajectory_errors(pred, true, spec)[:, at]
+        state = (((np.asarray(pred, np.float64) - true) / state_std) ** 2).sum(axis=-1)[:, at]
+    return {'score': errors.score(state_std), 'profile': profile,
+            'per_forecast': {'position': position, 'state': state}}
+
+
+def harms(profile: dict, physics: dict, until_step: int | None = None,
+          paired: tuple[dict, dict] | None = None, confidence: float | None = None
+          ) -> list[str]:
     """
     Return every judged figure of ``profile`` worse than the physics alone's.
 
     The position error and, where the profiles carry it, the state error (``normalized``)
-    at the reported steps up to ``until_step`` (default all). Empty: the profile is
-    admissible. A diverged figure (None) is always worse.
+    at the reported steps up to ``until_step`` (default all). With ``paired``, the
+    per-forecast figures of both (``forecast_figures``), and a ``confidence``, worse
+    means worse beyond the sampling error (module docstring); otherwise any worse mean
+    counts. Empty: the profile is admissible. A diverged figure (None) is always worse.
     """
+    z = None if paired is None or confidence is None else float(norm.ppf(confidence))
     worse = []
-    figures = [('position', profile['position_m'], physics['position_m'])]
+    figures = [('position', 'position', profile['position_m'], physics['position_m'])]
     if 'normalized' in profile and 'normalized' in physics:
-        figures.append(('state error', profile['normalized'], physics['normalized']))
-    for name, got, reference in figures:
-        for step, g, r in zip(profile['steps'], got, reference, strict=True):
+        figures.append(('state error', 'state', profile['normalized'], physics['normalized']))
+    for name, key, got, reference in figures:
+        for q, (step, g, r) in enumerate(zip(profile['steps'], got, reference, strict=True)):
             if until_step is not None and step > until_step:
                 continue
-            if g is None or (r is not None and g > r):
+            if g is None:
+                worse.append(f'{name} at step {step}')
+            elif r is not None and g > r and (z is None or _resolved(
+                    paired[0][key][:, q] - paired[1][key][:, q], z)):
                 worse.append(f'{name} at step {step}')
     return worse
 
 
+def _resolved(differences: np.ndarray, z: float) -> bool:
+    """Tell whether paired differences are positive beyond z standard errors."""
+    n = len(differences)
+    if n < 2:
+        return True
+    return bool(differences.mean() > z * differences.std(ddof=1) / np.sqrt(n))
+
+
 def choose_schedule(evaluate: Callable[[list], dict], grid: list, physics: dict,
-                    dt: float) -> dict:
+                    dt: float, confidence: float | None = None) -> dict:
     """
     Pick the served threshold, quarter by quarter (module docstring); return the choice.
 
@@ -87,7 +132,9 @@ def choose_schedule(evaluate: Callable[[list], dict], grid: list, physics: dict,
             schedule = chosen + [(start, t)]
             row = {'quarter_from_s': start, 'relative_threshold': t, 'schedule': schedule,
                    **evaluate(schedule)}
-            row['harms'] = harms(row['profile'], physics['profile'], end)
+            paired = (row.pop('per_forecast'), physics['per_forecast']) \
+                if 'per_forecast' in row and 'per_forecast' in physics else None
+            row['harms'] = harms(row['profile'], physics['profile'], end, paired, confidence)
             tried.append(row)
         rows += tried
         admissible = [r for r in tried if not r['harms'] and math.isfinite(r['score'])]

@@ -84,8 +84,12 @@ DEFAULTS: dict = {
         # always included; none above model.relative_threshold when that is set; null:
         # unbounded) as the best one not worse than the physics alone at any reported
         # step. false: serve model.relative_threshold as configured.
+        # "Worse" is judged per forecast, paired with the physics alone: worse beyond
+        # the validation runs' sampling error at this one-sided confidence (null: any
+        # difference at all counts).
         'selection': {'do_no_harm': True,
-                      'thresholds': [0.0, 0.01, 0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0]},
+                      'thresholds': [0.0, 0.01, 0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0],
+                      'confidence': 0.95},
     },
     # None: the vessel's horizon; stride horizon/7.5 (120 s of the paper's 900 s)
     'evaluation': {'horizon': None, 'stride': None, 'target': 'true',

@@ -31,7 +31,12 @@ from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import CompositeModel, RegressionModel
 from hybrid_models.run_store import RowFile, RowWriter, build_split
-from hybrid_models.selection import PHYSICS_ALONE, choose_schedule, threshold_grid
+from hybrid_models.selection import (
+    PHYSICS_ALONE,
+    choose_schedule,
+    forecast_figures,
+    threshold_grid,
+)
 from hybrid_models.streaming import Moments, RowSample
 from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.distributed import Group, join, leave
@@ -228,9 +233,8 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
 
     def figures(threshold) -> dict:
         with model.served_at(threshold):
-            errors = task.validation_errors(model)
-        return {'score': errors.score(std),
-                'profile': errors.profile(model.spec, state_std=std)}
+            pred, true = task.validation_forecasts(model)
+        return forecast_figures(pred, true, model.spec, std)
 
     physics = figures(PHYSICS_ALONE)
     if best_epoch == REFERENCE_EPOCH:
@@ -238,11 +242,13 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
                   'reason': 'no epoch forecast the validation runs better than the physics '
                             'alone; the physics alone is served', 'candidates': []}
     else:
-        choice = choose_schedule(figures, grid, physics, model.spec.dt)
+        choice = choose_schedule(figures, grid, physics, model.spec.dt,
+                                 tcfg['selection']['confidence'])
     model.set_threshold(choice['relative_threshold'])
     print(f"served threshold {choice['relative_threshold']}: {choice['reason']}",
           file=sys.stderr)
-    return {**choice, 'cap': cap, 'grid': grid, 'physics': physics,
+    kept = {k: v for k, v in physics.items() if k != 'per_forecast'}
+    return {**choice, 'cap': cap, 'grid': grid, 'physics': kept,
             'best_epoch': best_epoch}
 
 
