@@ -49,7 +49,9 @@ def test_a_forecast_worse_in_position_or_state_error_at_a_reported_step_harms():
 def fake_validation(errors_by_threshold):
     """evaluate(schedule): each quarter's errors come from the threshold serving it."""
     def evaluate(schedule):
-        served = [t for _, t in schedule] + [schedule[-1][1]] * (2 - len(schedule))
+        starts = [start for start, _ in schedule] + [float('inf')]
+        served = [next(t for (_, t), e in zip(schedule, starts[1:], strict=True) if q < e)
+                  for q in range(2)]
         position = [errors_by_threshold[t][0][q] for q, t in enumerate(served)]
         normalized = [errors_by_threshold[t][1][q] for q, t in enumerate(served)]
         return {'score': sum(normalized), 'profile': profile(position, normalized)}
@@ -60,11 +62,10 @@ def test_the_best_admissible_threshold_is_served_and_the_physics_when_none_helps
     physics = {'score': 0.3, 'profile': profile([1.0, 2.0], [0.1, 0.2])}
     table = {0.0: ([1.0, 2.0], [0.1, 0.2]),
              0.1: ([0.9, 1.8], [0.09, 0.15]),
-             # Better on the score, but worse in the first quarter: refused there.
+             # Better on the score, but worse in the first quarter: refused.
              0.5: ([1.1, 1.0], [0.11, 0.05])}
     chosen = choose_schedule(fake_validation(table), [0.0, 0.1, 0.5], physics, dt=1.0)
-    # Quarter one takes 0.1 (0.5 harms it); quarter two then 0.5 (admissible, best).
-    assert chosen['relative_threshold'] == [[0.0, 0.1], [1.0, 0.5]]
+    assert chosen['relative_threshold'] == 0.1
     assert any('position at step 1' in row['harms'] for row in chosen['candidates'])
     worse = {0.0: table[0.0], 0.1: ([1.1, 2.2], [0.2, 0.3])}
     none = choose_schedule(fake_validation(worse), [0.0, 0.1], physics, dt=1.0)
@@ -76,6 +77,7 @@ def test_a_correction_that_hurts_only_at_first_is_served_after_the_first_quarter
     table = {0.0: ([1.0, 2.0], [0.1, 0.2]), 0.2: ([1.2, 1.0], [0.12, 0.1])}
     chosen = choose_schedule(fake_validation(table), [0.0, 0.2], physics, dt=0.5)
     assert chosen['relative_threshold'] == [[0.0, 0.0], [0.5, 0.2]]
+    assert 'until 0.5 s' in chosen['reason']
 
 
 def test_step_errors_of_parts_add_up_to_the_whole_and_profile_the_quarters():
@@ -167,13 +169,30 @@ def test_a_difference_the_validation_runs_cannot_resolve_is_not_harm():
     noisy = noise - noise.mean(axis=0) + physics_errors.mean(axis=0) + 0.01  # a bit worse
     clearly = physics_errors + 0.2                                           # always worse
     base = profile(physics_errors.mean(axis=0), physics_errors.mean(axis=0))
-    per = {'position': physics_errors, 'state': physics_errors}
+    runs = np.arange(40) % 8          # five forecasts from each of eight validation runs
+    per = {'position': physics_errors, 'state': physics_errors, 'run': runs}
 
     def judged(errors, confidence):
         return harms(profile(errors.mean(axis=0), errors.mean(axis=0)), base, None,
-                     ({'position': errors, 'state': errors}, per), confidence)
+                     ({'position': errors, 'state': errors, 'run': runs}, per), confidence)
 
     assert judged(noisy, 0.95) == []
     assert judged(noisy, None) != []           # any worse mean counts without a test
     assert judged(clearly, 0.95) == ['position at step 1', 'position at step 2',
                                      'state error at step 1', 'state error at step 2']
+
+
+def test_one_run_against_the_others_is_judged_by_runs_not_by_forecasts():
+    # One long validation run where the correction hurts, five shorter ones where it
+    # helps: 60 forecasts against 5 x 8, but six runs, and the runs decide.
+    runs = np.concatenate([np.zeros(60, int), np.repeat(np.arange(1, 6), 8)])
+    physics_errors = np.ones((100, 1))
+    hybrid = np.concatenate([np.full(60, 1.5), np.full(40, 0.7)])[:, None]
+    base = profile([1.0], [1.0], steps=(1,))
+    worse = profile([hybrid.mean()], [hybrid.mean()], steps=(1,))
+    pairs = ({'position': hybrid, 'state': hybrid, 'run': runs},
+             {'position': physics_errors, 'state': physics_errors, 'run': runs})
+    assert hybrid.mean() > 1.0
+    assert harms(worse, base, None, pairs, 0.95) == []
+    assert harms(worse, base, None, pairs, None) == ['position at step 1',
+                                                    'state error at step 1']

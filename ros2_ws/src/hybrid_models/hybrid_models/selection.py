@@ -5,22 +5,25 @@ A trained hybrid is forecast on the validation runs at thresholds of a grid that
 includes 0, the physics alone (``hybrid_models.bound``). A forecast is admissible when,
 at every reported step (``hybrid_models.metrics.StepErrors.profile``: every quarter of
 the horizon), neither its position error nor its state error is worse than the physics
-alone's. T = 0 is admissible by construction. "Worse" is judged forecast by forecast,
-paired with the physics alone's forecast from the same window: the mean difference must
-exceed its standard error times the one-sided normal quantile of ``confidence`` (0.95:
-1.645), so that a difference the validation runs cannot resolve is not called harm
-(overlapping forecasts are correlated, so the standard error is if anything too small,
-and harm too readily found); ``confidence`` None counts any difference of the means.
+alone's. T = 0 is admissible by construction. "Worse" is judged on paired differences
+(each forecast against the physics alone's from the same window), averaged per
+validation run: the runs are the sampling units, since the forecasts of one run share
+its conditions and overlap. The mean of the runs' differences must exceed its standard
+error times the one-sided normal quantile of ``confidence`` (0.95: 1.645), so that a
+difference the validation runs cannot resolve is not called harm; with one validation
+run, or ``confidence`` None, any worse mean counts.
 
-The threshold may change along the forecast, once per reported step (a schedule,
-``bound.schedule_of``), chosen quarter by quarter: for the first quarter, the threshold
-(later quarters continuing with it) with the lowest validation score among those
-admissible up to the quarter's end; then, with it fixed, the next quarter's; and so on.
-The first quarter of a hybrid whose correction helps later but not at first is served
-by the physics alone. If no threshold is admissible in some quarter, the physics alone
-is served throughout. The checkpoint keeps every candidate's figures, so the choice can
-be checked and redone; per-state RMSEs are reported, not judged: a correction may trade
-a little of one state for much of the others.
+The served threshold is the admissible one of the grid with the lowest validation score
+(sum over states of RMSE / std, the score epochs are selected by). When no threshold
+above 0 is admissible, the correction may still be admissible from a later reported
+step on (a hybrid whose correction helps later but not over the first seconds): the
+schedule "the physics alone until s, then T" (``bound.schedule_of``) is tried for s at
+each reported step but the last. One threshold for the whole forecast is preferred to a
+later start however their scores compare, as the simpler claim that the validation runs
+support. If nothing is admissible, the physics alone is served. The checkpoint keeps
+every candidate's figures, so the choice can be checked and redone; per-state RMSEs are
+reported, not judged: a correction may trade a little of one state for much of the
+others.
 """
 
 from __future__ import annotations
@@ -55,14 +58,15 @@ def threshold_grid(thresholds: Sequence[float | None], cap: float | None) -> lis
     return finite + ([None] if None in grid else [])
 
 
-def forecast_figures(pred: np.ndarray, true: np.ndarray, spec, state_std: np.ndarray
-                     ) -> dict:
+def forecast_figures(pred: np.ndarray, true: np.ndarray, spec, state_std: np.ndarray,
+                     runs: np.ndarray) -> dict:
     """
     Return what the selection judges of forecasts (B, H, n_state) against the truth.
 
     'score' and 'profile' (``metrics.StepErrors``), and per forecast at the reported steps
     (B, steps) its position error ('position') and state error ('state': sum over states
-    of squared error / std^2), for paired comparisons.
+    of squared error / std^2), with the run each came from (``runs``, (B,)), for paired
+    comparisons.
     """
     errors = StepErrors.of(pred, true, spec)
     profile = errors.profile(spec, state_std=state_std)
@@ -71,7 +75,7 @@ def forecast_figures(pred: np.ndarray, true: np.ndarray, spec, state_std: np.nda
         position = trajectory_errors(pred, true, spec)[:, at]
         state = (((np.asarray(pred, np.float64) - true) / state_std) ** 2).sum(axis=-1)[:, at]
     return {'score': errors.score(state_std), 'profile': profile,
-            'per_forecast': {'position': position, 'state': state}}
+            'per_forecast': {'position': position, 'state': state, 'run': np.asarray(runs)}}
 
 
 def harms(profile: dict, physics: dict, until_step: int | None = None,
@@ -98,62 +102,58 @@ def harms(profile: dict, physics: dict, until_step: int | None = None,
             if g is None:
                 worse.append(f'{name} at step {step}')
             elif r is not None and g > r and (z is None or _resolved(
-                    paired[0][key][:, q] - paired[1][key][:, q], z)):
+                    paired[0][key][:, q] - paired[1][key][:, q], paired[1]['run'], z)):
                 worse.append(f'{name} at step {step}')
     return worse
 
 
-def _resolved(differences: np.ndarray, z: float) -> bool:
-    """Tell whether paired differences are positive beyond z standard errors."""
-    n = len(differences)
-    if n < 2:
+def _resolved(differences: np.ndarray, runs: np.ndarray, z: float) -> bool:
+    """Tell whether paired differences, averaged per run, are positive beyond z errors."""
+    per_run = np.array([differences[runs == r].mean() for r in np.unique(runs)])
+    if len(per_run) < 2:
         return True
-    return bool(differences.mean() > z * differences.std(ddof=1) / np.sqrt(n))
+    return bool(per_run.mean() > z * per_run.std(ddof=1) / np.sqrt(len(per_run)))
 
 
 def choose_schedule(evaluate: Callable[[list], dict], grid: list, physics: dict,
                     dt: float, confidence: float | None = None) -> dict:
     """
-    Pick the served threshold, quarter by quarter (module docstring); return the choice.
+    Pick the served threshold (module docstring); return the choice.
 
     ``evaluate(schedule)`` forecasts the validation runs served at a schedule and returns
-    {'score', 'profile'}; ``physics`` is that of the physics alone. Returns
-    {'relative_threshold' (a number, or a schedule when it changes), 'score', 'reason',
+    ``forecast_figures``; ``physics`` is that of the physics alone. Returns
+    {'relative_threshold' (a number, or a schedule for a later start), 'score', 'reason',
     'candidates'} where every candidate row has its schedule and ``harms``.
     """
     steps = physics['profile']['steps']
-    starts = [0.0] + [k * dt for k in steps[:-1]]
-    chosen: list[tuple[float, float | None]] = []
     rows: list[dict] = []
-    best = None
-    for start, end in zip(starts, steps, strict=True):
+    for start in [0.0] + [k * dt for k in steps[:-1]]:
         tried = []
-        for t in grid:
-            schedule = chosen + [(start, t)]
-            row = {'quarter_from_s': start, 'relative_threshold': t, 'schedule': schedule,
+        for t in (t for t in grid if t != PHYSICS_ALONE):
+            schedule = [(0.0, t)] if start == 0.0 else [(0.0, PHYSICS_ALONE), (start, t)]
+            row = {'from_s': start, 'relative_threshold': t, 'schedule': schedule,
                    **evaluate(schedule)}
             paired = (row.pop('per_forecast'), physics['per_forecast']) \
                 if 'per_forecast' in row and 'per_forecast' in physics else None
-            row['harms'] = harms(row['profile'], physics['profile'], end, paired, confidence)
+            row['harms'] = harms(row['profile'], physics['profile'], None, paired,
+                                 confidence)
             tried.append(row)
         rows += tried
-        admissible = [r for r in tried if not r['harms'] and math.isfinite(r['score'])]
+        admissible = [r for r in tried if not r['harms'] and math.isfinite(r['score'])
+                      and r['score'] < physics['score']]
         best = min(admissible, key=lambda r: (r['score'], _order(r['relative_threshold'])),
                    default=None)
-        if best is None:
-            break
-        chosen = best['schedule']
-    if best is None or best['score'] >= physics['score']:
-        reason = ('no threshold forecasts the validation runs better than the physics alone '
-                  'without being worse at a reported step; the physics alone is served')
-        return {'relative_threshold': PHYSICS_ALONE, 'score': physics['score'],
-                'reason': reason, 'candidates': rows}
-    served = simplest(chosen)
-    gain = 1 - best['score'] / physics['score']
-    reason = (f'lowest validation score not worse than the physics alone at any reported '
-              f'step ({100 * gain:.1f} % below the physics alone)')
-    return {'relative_threshold': served, 'score': best['score'], 'reason': reason,
-            'candidates': rows}
+        if best is not None:
+            gain = 1 - best['score'] / physics['score']
+            when = '' if start == 0.0 else f', the physics alone until {start:g} s'
+            return {'relative_threshold': simplest(best['schedule']), 'score': best['score'],
+                    'reason': f'lowest validation score not worse than the physics alone at '
+                              f'any reported step{when} ({100 * gain:.1f} % below the '
+                              f'physics alone)', 'candidates': rows}
+    return {'relative_threshold': PHYSICS_ALONE, 'score': physics['score'],
+            'reason': 'no threshold forecasts the validation runs better than the physics '
+                      'alone without being worse at a reported step; the physics alone is '
+                      'served', 'candidates': rows}
 
 
 def simplest(schedule: list[tuple[float, float | None]]):

@@ -233,8 +233,8 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
 
     def figures(threshold) -> dict:
         with model.served_at(threshold):
-            pred, true = task.validation_forecasts(model)
-        return forecast_figures(pred, true, model.spec, std)
+            pred, true, runs = task.validation_forecasts(model)
+        return forecast_figures(pred, true, model.spec, std, runs)
 
     physics = figures(PHYSICS_ALONE)
     if best_epoch == REFERENCE_EPOCH:
