@@ -47,6 +47,10 @@ ENVIRONMENT: dict[str, tuple[tuple[str, str, str], ...]] = {
     ),
 }
 
+# Environment columns a vessel file may give a plausible range in ``limits`` (the
+# direction is an angle: any finite value is one).
+LIMITED_ENVIRONMENT: dict[str, tuple[str, ...]] = {'wind': ('wind_speed',)}
+
 # Where a vessel's recordings come from: ``open`` water (wind, waves and currents can act)
 # or a ``basin`` (towing tank, model basin: still water, no current).
 WATERS: dict[str, str] = {
