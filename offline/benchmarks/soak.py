@@ -125,6 +125,7 @@ class Load:
         self.sent = self.success = self.busy = self.failed = 0
         self.latencies: list[float] = []
         self.success_latencies: list[float] = []
+        self.busy_latencies: list[float] = []
         self.failures: dict[str, int] = {}
         self.deadline = 0.0
 
@@ -152,6 +153,7 @@ class Load:
                 self.success_latencies.append(time.monotonic() - sent_at)
             elif busy:
                 self.busy += 1
+                self.busy_latencies.append(time.monotonic() - sent_at)
             else:
                 self.failed += 1
                 key = response.message[:60]
@@ -238,6 +240,7 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
     stamp_gaps = np.diff(stamps) if len(stamps) > 1 else np.array([np.inf])
     latencies = np.asarray(load.latencies) * 1e3
     successes = np.asarray(load.success_latencies) * 1e3
+    busy = np.asarray(load.busy_latencies) * 1e3
     return {
         'duration_s': round(ended - started, 1),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': plans,
@@ -258,6 +261,10 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
             successes) else None,
         'success_latency_p99_ms': round(float(np.percentile(successes, 99)), 1) if len(
             successes) else None,
+        'busy_latency_p50_ms': round(float(np.percentile(busy, 50)), 1) if len(
+            busy) else None,
+        'busy_latency_p99_ms': round(float(np.percentile(busy, 99)), 1) if len(
+            busy) else None,
         'forecasts_published': len(during),
         'longest_silence_periods': round(float(stamp_gaps.max()) / forecast_period, 2),
         'longest_silence_wall_s': round(float(wall_gaps.max()), 3),
