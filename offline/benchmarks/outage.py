@@ -5,26 +5,30 @@ Starts ``--vessels`` simulated vessels, a simulator and a predictor each, in nam
 boat1, boat2, ... With ``--clock sim`` boat1's simulator publishes /clock and every node
 follows it (``use_sim_time``; one vessel by default); with ``--clock wall`` no /clock is
 published and the nodes run on the wall clock (two vessels by default, as
-``two_vessels.launch.py``). Once every predictor forecasts, the case is done to boat1:
+``two_vessels.launch.py``). Once every predictor forecasts, each case given is done to
+boat1 in turn, the next once boat1 forecasts and is OK again:
 
 - ``pause``: its simulator is stopped (SIGSTOP) for ``--outage`` s, then continued;
 - ``kill``: its simulator is killed (SIGKILL) and a new one with the same parameters is
   started ``--outage`` s later (under sim time its /clock starts over: a rewind);
 - ``second-clock``: a second simulator publishing /clock on another time line runs in
-  namespace ``intruder`` for ``--outage`` s (two /clock publishers);
+  namespace ``intruder`` for ``--outage`` s (two /clock publishers; on the wall clock
+  no node reads /clock and nothing may change);
 - ``none``: nothing (a baseline).
 
-Figures, in wall seconds: from the event to boat1's predictor's first ERROR, and that
-message; from the end of the outage to its first forecast and to its first OK after
-it; the worst level the other vessels' predictors reported meanwhile; every status
-name and hardware id seen (one per node and vessel, or shared).
+Figures per case, in wall seconds: from the event to boat1's predictor's first ERROR,
+and that message; from the end of the outage to its first forecast and to its first OK
+after it; the worst level the other vessels' predictors reported meanwhile; every
+status name and hardware id seen (one per node and vessel, or shared).
 """
 
 from __future__ import annotations
 
 import contextlib
+from functools import partial
 import os
 from pathlib import Path
+import re
 import signal
 import threading
 import time
@@ -40,8 +44,8 @@ SETTLE_S = 5.0           # forecasting steadily this long before the event
 
 def add_arguments(parser) -> None:
     """Declare this suite's options."""
-    parser.add_argument('--case', choices=CASES, default='pause',
-                        help='what happens to boat1 (default pause)')
+    parser.add_argument('--case', choices=CASES, nargs='+', default=['pause'],
+                        help='what happens to boat1, in turn (default pause)')
     parser.add_argument('--clock', choices=('sim', 'wall'), default='sim',
                         help='sim: nodes follow /clock of boat1; wall: the wall clock')
     parser.add_argument('--vessels', type=int, default=None,
@@ -126,18 +130,16 @@ class Watcher:
             return sum(t >= since for t in self.forecasts[ns]) >= count
 
 
-def outage(case: str, clock: str = 'sim', vessels: int | None = None,
+def outage(cases, clock: str = 'sim', vessels: int | None = None,
            outage_s: float = 30.0, watch_s: float = 150.0, rtf: float | None = None,
            params: dict | None = None, log_dir: Path | None = None) -> dict:
-    """Run one case (see the module docstring) and return its figures."""
+    """Run the cases in turn on one graph (see the module docstring); return the figures."""
     from vessel_bringup.processes import Children, say, wait_until
 
-    if case not in CASES:
-        raise ValueError(f'case must be one of {CASES}, got {case!r}')
+    cases = [cases] if isinstance(cases, str) else list(cases)
+    if unknown := [c for c in cases if c not in CASES]:
+        raise ValueError(f'cases must be among {CASES}, got {unknown}')
     sim_time = clock == 'sim'
-    if case == 'second-clock' and not sim_time:
-        raise ValueError('second-clock needs --clock sim: on the wall clock no node reads '
-                         '/clock')
     vessels = vessels or (1 if sim_time else 2)
     rtf = rtf or (10.0 if sim_time else 1.0)
     namespaces = [f'boat{k + 1}' for k in range(vessels)]
@@ -172,66 +174,92 @@ def outage(case: str, clock: str = 'sim', vessels: int | None = None,
             attributable = all(any(f'/{ns}/' in name for name, _ in keys_before)
                                for ns in namespaces)
             victim = namespaces[0]
-            say(f'outage: {case} of {victim} for {outage_s:g} s')
-            event = time.monotonic()
-            if case == 'pause':
-                os.killpg(sims[victim].pid, signal.SIGSTOP)
-                time.sleep(outage_s)
-                os.killpg(sims[victim].pid, signal.SIGCONT)
-            elif case == 'kill':
-                os.killpg(sims[victim].pid, signal.SIGKILL)
-                with contextlib.suppress(Exception):
-                    sims[victim].wait(5)
-                children.processes.remove(sims[victim])
-                time.sleep(outage_s)
-                sims[victim] = children.node('ship_sim_node', 'simulator', namespace=victim,
-                                             params=simulator_params(0, sim_time),
-                                             label=f'{victim}_simulator_restarted')
-            elif case == 'second-clock':
-                intruder = children.node('ship_sim_node', 'simulator', namespace='intruder',
-                                         params={'seed': 9, 'real_time_factor': rtf,
-                                                 'start_time': INTRUDER_START})
-                time.sleep(outage_s)
-                children.stop(intruder)
-            else:
-                time.sleep(outage_s)
-            resumed = time.monotonic()
-            say('outage: over; watching the recovery')
-            wait_until(lambda: watcher.forecasting(victim, resumed, 2) and any(
-                level == OK for _, level, _ in watcher.of(victim, resumed, attributable)),
-                watch_s, 0.5)
-            time.sleep(2.0)
-            return figures(watcher, case, clock, namespaces, rtf, outage_s, event, resumed,
-                           attributable)
+            results = []
+            for number, case in enumerate(cases):
+                say(f'outage: {case} of {victim} for {outage_s:g} s')
+                event = time.monotonic()
+                if case == 'pause':
+                    os.killpg(sims[victim].pid, signal.SIGSTOP)
+                    time.sleep(outage_s)
+                    os.killpg(sims[victim].pid, signal.SIGCONT)
+                elif case == 'kill':
+                    os.killpg(sims[victim].pid, signal.SIGKILL)
+                    with contextlib.suppress(Exception):
+                        sims[victim].wait(5)
+                    children.processes.remove(sims[victim])
+                    time.sleep(outage_s)
+                    sims[victim] = children.node(
+                        'ship_sim_node', 'simulator', namespace=victim,
+                        params=simulator_params(0, sim_time),
+                        label=f'{victim}_simulator_{number}')
+                elif case == 'second-clock':
+                    intruder = children.node(
+                        'ship_sim_node', 'simulator', namespace='intruder',
+                        label=f'intruder_simulator_{number}',
+                        params={'seed': 9, 'real_time_factor': rtf,
+                                'start_time': INTRUDER_START})
+                    time.sleep(outage_s)
+                    children.stop(intruder)
+                else:
+                    time.sleep(outage_s)
+                resumed = time.monotonic()
+                say('outage: over; watching the recovery')
+                wait_until(partial(recovered, watcher, victim, resumed, attributable),
+                           watch_s, 0.5)
+                time.sleep(2.0)
+                results.append(figures(watcher, case, namespaces, event, resumed,
+                                       attributable))
+            return {'clock': clock, 'vessels': vessels, 'rtf': rtf, 'outage_s': outage_s,
+                    'statuses_attributable_to_a_vessel': attributable,
+                    'status_keys': [list(k) for k in watcher.keys()],
+                    'cases': results}
         finally:
             watcher.close()
 
 
-def figures(watcher: Watcher, case: str, clock: str, namespaces: list[str], rtf: float,
-            outage_s: float, event: float, resumed: float, attributable: bool) -> dict:
+def recovered(watcher: Watcher, ns: str, since: float, attributable: bool) -> bool:
+    """Whether ``ns`` forecast again and said OK (or only WARN) after ``since``."""
+    return watcher.forecasting(ns, since, 2) and any(
+        level in (OK, WARN) for _, level, _ in watcher.of(ns, since, attributable))
+
+
+def first_distinct(messages, count: int = 8) -> list[str]:
+    """The first ``count`` distinct messages, in order, numbers left out of the comparison."""
+    out, keys = [], set()
+    for message in messages:
+        key = re.sub(r'[0-9.]+', '#', message)
+        if key not in keys:
+            keys.add(key)
+            out.append(message)
+    return out[:count]
+
+
+def figures(watcher: Watcher, case: str, namespaces: list[str], event: float,
+            resumed: float, attributable: bool) -> dict:
     """Return the case's figures (wall seconds, relative to the event or the resumption)."""
     victim, others = namespaces[0], namespaces[1:]
     seen = watcher.of(victim, event, attributable)
     errors = [(t, message) for t, level, message in seen if level == ERROR]
     first_forecast = [t for t in watcher.forecasts[victim] if t >= resumed]
     first_ok = [t for t, level, _ in seen if level == OK and t >= resumed]
+    first_no_error = [t for t, level, _ in seen if level in (OK, WARN) and t >= resumed]
     during = [(t, level, message) for t, level, message in seen if t < resumed]
 
     def rounded(value):
         return None if value is None else round(value, 2)
 
     out = {
-        'case': case, 'clock': clock, 'vessels': len(namespaces), 'rtf': rtf,
-        'outage_s': outage_s,
-        'statuses_attributable_to_a_vessel': attributable,
-        'status_keys': [list(k) for k in watcher.keys()],
+        'case': case,
         'time_to_error_s': rounded(errors[0][0] - event if errors else None),
         'error_message': errors[0][1] if errors else None,
         'levels_during_outage': sorted({level for _, level, _ in during}),
-        'messages_during_outage': sorted({message for _, _, message in during})[:6],
+        'error_messages': first_distinct(message for _, message in errors),
+        'messages_after': first_distinct(message for t, _, message in seen if t >= resumed),
         'recovered_forecast_after_s': rounded(first_forecast[0] - resumed
                                               if first_forecast else None),
         'recovered_ok_after_s': rounded(first_ok[0] - resumed if first_ok else None),
+        'recovered_no_error_after_s': rounded(first_no_error[0] - resumed
+                                              if first_no_error else None),
         'last_message': seen[-1][2] if seen else None,
     }
     if attributable:

@@ -16,17 +16,13 @@ at the end, and 20 samples in between (growth that levels off, or keeps on).
 from __future__ import annotations
 
 from array import array
-import os
 from pathlib import Path
-import signal
-import subprocess
 import threading
 import time
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
-INSTALL = REPO / 'ros2_ws' / 'install'
 GOALS = {'answered_percent': '== 100', 'longest_silence_periods': '<= 2',
          'rss_growth_percent': '< 5 (over 10 minutes)'}
 HORIZON = 900
@@ -68,28 +64,6 @@ def rss_mb(pid: int) -> float:
         if line.startswith('VmRSS:'):
             return int(line.split()[1]) / 1024.0
     raise RuntimeError(f'no VmRSS for process {pid}')
-
-
-def start(package: str, executable: str, *params: str, log: Path) -> subprocess.Popen:
-    """Start an installed node executable in its own process group, output to ``log``."""
-    argv = [str(INSTALL / package / 'lib' / package / executable), '--ros-args']
-    for p in params:
-        argv += ['-p', p]
-    with open(log, 'wb') as out:
-        return subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True, cwd=REPO)
-
-
-def stop(process: subprocess.Popen) -> None:
-    """Stop a process group: SIGINT, then SIGKILL."""
-    for sig in (signal.SIGINT, signal.SIGKILL):
-        if process.poll() is not None:
-            return
-        os.killpg(process.pid, sig)
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            continue
 
 
 def make_plans(count: int, seed: int = 0):
@@ -175,21 +149,32 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
          forecast_period: float = 1.0, busy_backoff: float = 0.2,
          log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
     """Run the soak (see the module docstring) and return its figures."""
+    from vessel_bringup.processes import Children
+
+    log_dir = Path(log_dir or REPO / 'ros2_ws' / 'log' / 'soak')
+    # The nodes are stopped however the soak ends: normally, by an error, or by SIGINT,
+    # SIGTERM or SIGHUP of this process (a `timeout` around it).
+    with Children(log_dir) as children:
+        return _soak(children, log_dir, duration, clients, concurrency, plans, rtf,
+                     forecast_period, busy_backoff, predictor_params)
+
+
+def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: int,
+          plans: int, rtf: float, forecast_period: float, busy_backoff: float,
+          predictor_params) -> dict:
     import rclpy
     from rclpy.executors import MultiThreadedExecutor
+    from vessel_bringup.processes import rclpy_options
 
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge.messages import seconds_from_stamp
 
-    log_dir = Path(log_dir or REPO / 'ros2_ws' / 'log' / 'soak')
-    log_dir.mkdir(parents=True, exist_ok=True)
-    sim = start('ship_sim_node', 'simulator', 'seed:=5', f'real_time_factor:={rtf}',
-                log=log_dir / 'simulator.log')
-    predictor = start('hybrid_predictor', 'predictor', 'use_sim_time:=true',
-                      f'max_plans:={max(plans, 1)}', f'forecast_period:={forecast_period}',
-                      *predictor_params, log=log_dir / 'predictor.log')
+    children.node('ship_sim_node', 'simulator', params={'seed': 5, 'real_time_factor': rtf})
+    extra = [arg for p in predictor_params for arg in ('-p', p)]
+    predictor = children.node('hybrid_predictor', 'predictor', *extra, params={
+        'use_sim_time': True, 'max_plans': max(plans, 1), 'forecast_period': forecast_period})
     context = rclpy.Context()
-    rclpy.init(context=context)
+    rclpy.init(context=context, **rclpy_options())
     node = rclpy.create_node('soak_client', context=context)
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(node)
@@ -231,8 +216,6 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
         executor.shutdown(timeout_sec=5)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
-        stop(predictor)
-        stop(sim)
     during = [(w, s) for w, s in forecasts if started <= w <= ended]
     walls = np.array([w for w, _ in during] or [started])
     stamps = np.array([s for _, s in during])

@@ -226,14 +226,15 @@ def test_an_incomplete_window_gives_a_clear_status_and_no_forecast(launcher, ros
 class Feeder:
     """Publish the predictor's inputs from the test, stamped on the wall clock."""
 
-    def __init__(self, node):
+    def __init__(self, node, namespace: str | None = None):
         from geometry_msgs.msg import Vector3Stamped
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import JointState
 
         from vessel_ros_bridge import messages as m
-        from vessel_ros_bridge.names import DEFAULT_NAMESPACE as NS
+        from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
+        NS = namespace or DEFAULT_NAMESPACE  # noqa: N806 - the namespace, as a constant
         self.m = m
         # The test's node is in the root namespace: the nodes' relative names, made absolute.
         self.odom = node.create_publisher(Odometry, f'{NS}/{m.ODOM_TOPIC}', 200)

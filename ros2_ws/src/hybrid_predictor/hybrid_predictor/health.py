@@ -171,8 +171,8 @@ class Health:
                           f'{abs(lines.contested_lag - offset):.1f} s apart, from two '
                           f'sources')
         if age is not None and age > self.max_age:
-            errors.append(f'inputs stale: newest state is {age:.1f} s old (max '
-                          f'{self.max_age:g} s)')
+            errors.append(f'inputs stale: newest state is {age:.1f} s old on '
+                          f'{self.state_topic} (max {self.max_age:g} s)')
         elif self.last_state_wall is not None and wall is not None and \
                 wall - self.last_state_wall > self.watchdog:
             errors.append(f'no {self.state_topic} accepted for '

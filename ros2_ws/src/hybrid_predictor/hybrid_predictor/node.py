@@ -367,7 +367,7 @@ class PredictorNode(Node):
 
     def _forecast_worker(self) -> None:
         """Forecast the pending state once its sample is complete or the wait is over."""
-        started = time.monotonic()
+        started, started_msg = time.monotonic(), self._now()
         while True:
             with self.lock:
                 pending = self.pending
@@ -376,11 +376,12 @@ class PredictorNode(Node):
                 synced = self._synced(pending.t)
             self.input_event.clear()
             if pending.backlogged:
-                # Read a burst through first, then forecast once from the latest window
-                # (at the latest one forecast period after the first backlogged state).
-                wait = min(self.p['backlog_skip'],
-                           started + self.p['forecast_period'] - time.monotonic())
-                if wait > 0 and self.input_event.wait(wait):
+                # Read a burst through first, then forecast once from the latest window:
+                # at the latest one forecast period of message time after the first
+                # backlogged state (a wall second is ten periods at 10x simulated time),
+                # plus at most one backlog_skip of wall time.
+                left = started_msg + self.p['forecast_period'] - self._now()
+                if left > 0 and self.input_event.wait(min(self.p['backlog_skip'], left)):
                     continue
             elif not synced:
                 wait = started + self.p['sync_timeout'] - time.monotonic()

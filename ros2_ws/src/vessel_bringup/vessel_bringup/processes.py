@@ -49,14 +49,18 @@ def executable(package: str, name: str) -> Path:
 
 def node_argv(package: str, name: str, *ros_args: str, params: dict | None = None,
               namespace: str | None = None) -> list[str]:
-    """Return the command line of an installed node with parameters and a namespace."""
-    argv = [str(executable(package, name)), '--ros-args', *ros_args]
+    """
+    Return the command line of an installed node with parameters and a namespace.
+
+    ``ros_args`` (e.g. ``-p name:=value`` a user gave) come after ``params``, so they win.
+    """
+    argv = [str(executable(package, name)), '--ros-args']
     for key, value in (params or {}).items():
         text = str(value).lower() if isinstance(value, bool) else str(value)
         argv += ['-p', f'{key}:={text}']
     if namespace:
         argv += ['-r', f'__ns:=/{namespace.strip("/")}']
-    return argv
+    return argv + list(ros_args)
 
 
 def stop_group(process: subprocess.Popen, leader_first: bool = False,
