@@ -113,7 +113,7 @@ class Watcher:
         rclpy.try_shutdown(context=self.context)
 
     def keys(self) -> list[list[str]]:
-        """Every (status name, hardware id) seen."""
+        """Return every (status name, hardware id) seen."""
         with self.lock:
             return sorted({(s.name, s.hardware_id) for _, s in self.statuses})
 
@@ -224,7 +224,7 @@ def recovered(watcher: Watcher, ns: str, since: float, attributable: bool) -> bo
 
 
 def first_distinct(messages, count: int = 8) -> list[str]:
-    """The first ``count`` distinct messages, in order, numbers left out of the comparison."""
+    """Return the first ``count`` distinct messages in order (numbers not compared)."""
     out, keys = [], set()
     for message in messages:
         key = re.sub(r'[0-9.]+', '#', message)
