@@ -8,7 +8,8 @@ listens to /vessel/forecast. A client answered "busy" waits ``--busy-backoff`` s
 before it sends again, as a well-behaved client does. Figures: requests sent, answered
 (success, busy or another failure) and never answered; p50/p99 latency; forecasts
 published during the soak and the longest silence between them, in message time
-(forecast periods) and wall time; the predictor's resident memory at the start, after
+(forecast periods) and wall time; how many /diagnostics reports said ERROR or WARN
+meanwhile, and why; the predictor's resident memory at the start, after
 the warm-up (the first tenth of the soak, at most 60 s: buffers and caches filling),
 at the end, and 20 samples in between (growth that levels off, or keeps on).
 """
@@ -162,6 +163,7 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
 def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: int,
           plans: int, rtf: float, forecast_period: float, busy_backoff: float,
           predictor_params) -> dict:
+    from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
     from rclpy.executors import MultiThreadedExecutor
     from vessel_bringup.processes import rclpy_options
@@ -182,6 +184,9 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     forecasts: list[tuple[float, float]] = []   # (wall s, stamp s)
     node.create_subscription(Forecast, '/vessel/forecast', lambda m: forecasts.append(
         (time.monotonic(), seconds_from_stamp(m.header.stamp))), 50)
+    reports: list[tuple[float, int, str]] = []   # (wall s, level, message)
+    node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: reports.extend(
+        (time.monotonic(), s.level[0], s.message) for s in m.status), 50)
     load = Load(node, clients, concurrency, plans, busy_backoff)
     spinner.start()
     try:
@@ -221,6 +226,8 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     stamps = np.array([s for _, s in during])
     wall_gaps = np.diff(np.concatenate([[started], walls, [ended]]))
     stamp_gaps = np.diff(stamps) if len(stamps) > 1 else np.array([np.inf])
+    during_reports = [(level, message) for w, level, message in reports
+                      if started <= w <= ended]
     latencies = np.asarray(load.latencies) * 1e3
     successes = np.asarray(load.success_latencies) * 1e3
     busy = np.asarray(load.busy_latencies) * 1e3
@@ -259,6 +266,11 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'rss_growth_percent': round(100.0 * (rss_end - rss_start) / rss_start, 2),
         'rss_growth_after_warm_up_percent': round(
             100.0 * (rss_end - (rss_warm or rss_end)) / (rss_warm or rss_end), 2),
+        'diagnostics_reports': len(during_reports),
+        'diagnostics_error_reports': sum(level == 2 for level, _ in during_reports),
+        'diagnostics_warn_reports': sum(level == 1 for level, _ in during_reports),
+        'diagnostics_error_messages': sorted({m for level, m in during_reports
+                                              if level == 2})[:5],
         'predictor_alive': alive,
         'goals': GOALS,
     }

@@ -334,8 +334,8 @@ def test_an_unbounded_model_is_a_warning_unless_the_user_allowed_it(tmp_path):
                                 '-p', f'allow_unbounded:={allowed}', name=f'predictor_{ns}')
         feeders = [Feeder(node, f'/{ns}') for ns in forecasts]
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and node.count_subscribers('/warned/odom') + \
-                node.count_subscribers('/allowed/odom') < 6:
+        while time.monotonic() < deadline and not all(
+                node.count_subscribers(f'/{ns}/odom') for ns in forecasts):
             executor.spin_once(timeout_sec=0.1)
         time.sleep(1.0)
         now = time.time()
