@@ -580,7 +580,8 @@ class PredictorNode(Node):
 
     def hardware_id(self) -> str:
         """Return the status's hardware id: the vessel, by its namespace and type."""
-        return f'{self.get_namespace().strip("/") or "/"}/{self.spec.name}'
+        namespace = self.get_namespace().strip('/')
+        return f'{namespace}/{self.spec.name}' if namespace else self.spec.name
 
 
 def check_time_parameters(p: dict) -> None:
