@@ -267,8 +267,11 @@ def test_a_burst_is_read_through_and_the_latest_sample_forecast(launcher, ros_no
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge.messages import seconds_from_stamp
 
-    forecasts = []
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    forecasts, diagnostics = [], []
     ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
     predictor = wait_for_predictor(launcher, ros_node)
     feeder = Feeder(ros_node)
     spin_until(ros_node, lambda: False, 1.0)
@@ -278,7 +281,9 @@ def test_a_burst_is_read_through_and_the_latest_sample_forecast(launcher, ros_no
         feeder.sample(t)
     assert spin_until(ros_node, lambda: any(
         abs(seconds_from_stamp(f.header.stamp) - stamps[-1]) < 1e-6 for f in forecasts), 20), \
-        'the newest sample of the burst was never forecast'
+        'the newest sample of the burst was never forecast: ' + '; '.join(
+            f'{s.message} {[(kv.key, kv.value) for kv in s.values]}'
+            for d in diagnostics[-1:] for s in d.status)
     spin_until(ros_node, lambda: False, 1.0)
     # Only fresh data is forecast: far fewer forecasts than messages in the burst.
     assert len(forecasts) < len(stamps) / 4, len(forecasts)

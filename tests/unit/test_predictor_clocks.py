@@ -61,6 +61,18 @@ def test_a_steady_new_lag_takes_over_after_the_span_and_a_burst_never_does():
     assert burst.candidate is None and burst.offset == 0.0
 
 
+def test_a_late_clock_under_fast_sim_time_neither_re_anchors_nor_claims_two_sources():
+    # At 20x simulated time a /clock message processed 0.4 s late puts the stamps 8 s of
+    # the node's clock ahead of it: off the line for a moment of wall time only.
+    lines = TimeLines(tolerance=5.0, span=5.0)
+    now, wall = 1000.0, 50.0
+    for k in range(40):
+        now, wall = now + 1.0, wall + 0.05
+        late = 8.0 if 10 <= k < 20 else 0.0
+        assert not lines.state(now, now - late, wall)
+    assert lines.offset == 0.0 and lines.contested_lag is None
+
+
 def test_two_live_time_lines_are_reported_and_never_followed():
     lines = TimeLines(tolerance=5.0, span=2.0)
     now = 1000.0

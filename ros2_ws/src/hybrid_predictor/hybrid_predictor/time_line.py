@@ -112,12 +112,13 @@ class TimeLines:
             return False
         c.samples += 1
         c.last_seen, c.last_stamp = now, t
-        if c.contested:
+        lasted = min(now - c.since, wall - c.since_wall)
+        if c.samples < MIN_SAMPLES or lasted < self.span:
+            return False
+        if c.contested:   # both lines stayed live for the whole span: two sources
             self.contested_lag = c.lag
             return False
-        silent = self.last_on_line is None or now - self.last_on_line >= self.span
-        lasted = min(now - c.since, wall - c.since_wall)
-        return c.samples >= MIN_SAMPLES and lasted >= self.span and silent
+        return self.last_on_line is None or now - self.last_on_line >= self.span
 
     def take_over(self, now: float) -> ReAnchor:
         """Make the candidate the current line; return the change."""
