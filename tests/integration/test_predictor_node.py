@@ -264,10 +264,10 @@ def wait_for_predictor(launcher, ros_node, *params):
 def test_a_burst_is_read_through_and_the_latest_sample_forecast(launcher, ros_node):
     import time
 
+    from diagnostic_msgs.msg import DiagnosticArray
+
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge.messages import seconds_from_stamp
-
-    from diagnostic_msgs.msg import DiagnosticArray
 
     forecasts, diagnostics = [], []
     ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
