@@ -177,6 +177,9 @@ class PredictorNode(Node):
                        'service_failed': 0}
         self.latest_plan: tuple[ControlPlan, dict] | None = None
         self.pending: Pending | None = None
+        # A scheduled state whose actuator or wind samples had not arrived when its wait
+        # ended (a burst read topic by topic): forecast once they catch up with it.
+        self.deferred: Pending | None = None
         self.timeline_changes = 0   # restarts and re-anchors the schedule has seen
         started = time.perf_counter()
         self.engine.warm_up(self.horizon, window=window, max_batch=p['max_plans'])
@@ -263,7 +266,7 @@ class PredictorNode(Node):
         with self.lock:
             self.window.clear()
             self.schedule.reset()
-            self.pending = None
+            self.pending = self.deferred = None
             self.health.clock_jumped(self._now())
         with self.count_lock:
             self.counts['clock_resets'] += 1
@@ -319,6 +322,8 @@ class PredictorNode(Node):
             return
         if is_state:
             self._on_state(t, info)
+        else:
+            self._resume_deferred()
         self.input_event.set()
 
     def _say(self, key: str, text: str, error: bool = False) -> None:
@@ -337,9 +342,16 @@ class PredictorNode(Node):
             received_ns = (info or {}).get('received_timestamp') or time.time_ns()
             # A message that waited in the queue: newer ones are probably behind it.
             backlogged = (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']
-            self.pending = Pending(t, received_ns, backlogged)
+            self.pending, self.deferred = Pending(t, received_ns, backlogged), None
         with self.count_lock:
             self.counts['states_skipped_as_backlog'] += backlogged
+        self.forecast_trigger.trigger()
+
+    def _resume_deferred(self) -> None:
+        with self.lock:
+            if self.deferred is None or not self._synced(self.deferred.t):
+                return
+            self.pending, self.deferred = self.deferred, None
         self.forecast_trigger.trigger()
 
     def _on_plan(self, msg: ControlPlan) -> None:
@@ -395,6 +407,8 @@ class PredictorNode(Node):
                 return
             result = self._window()
             plan = self.latest_plan
+            if not result.ready and not self._synced(pending.t):
+                self.deferred = pending
         if result.ready:
             self._forecast_and_publish(result, plan, pending.received_ns)
 
