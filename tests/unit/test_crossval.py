@@ -130,3 +130,15 @@ def test_folds_by_kind_hold_out_each_kind_and_always_train_on_the_unmatched(toy,
         assert {ids['FREE_1'], ids['FREE_2']} <= set(f.train) | set(f.val)
     with pytest.raises(ValueError, match='needs at least 2'):
         make_folds(ds, tmp_path, None, fold_by='FREE')
+
+
+def test_two_physics_of_one_name_are_told_apart_by_their_model():
+    from hybrid_models.evaluation import physics_label
+
+    taken = set()
+    for owner in ('hybrid', 'hybrid, no mirror images'):
+        taken.add(physics_label('hyd physics', 'f' * 16, owner, taken))
+    assert taken == {'hyd physics', 'hyd physics (of hybrid, no mirror images)'}
+    # The same model's seeds fitted on other data: the fingerprint decides.
+    assert physics_label('hyd physics', '1774de' + '0' * 10, 'hybrid, no mirror images',
+                         taken) == 'hyd physics (of hybrid, no mirror images) [1774de]'

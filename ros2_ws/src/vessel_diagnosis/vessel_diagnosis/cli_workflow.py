@@ -97,7 +97,8 @@ def main(argv=None) -> int:
     result['diagnoses'] = diagnoses
     result['nominal_physics'] = nominal
     write_results(args.out, result, dataset.vessel)
-    found = [f"- fold {k}: {d['summary'] or 'no summary'}"
+    # The report sits in --out: the folds' own reports are named relative to it.
+    found = [f"- fold {k}: {(d['summary'] or 'no summary').replace(f'{args.out}/', '')}"
              + ('' if d['augmented'] else ' (no augmented physics: the hybrid on augmented '
                                           'physics is the one on nominal physics)')
              for k, d in diagnoses.items()]

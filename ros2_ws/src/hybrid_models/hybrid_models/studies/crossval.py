@@ -30,7 +30,7 @@ import numpy as np
 from hybrid_models import report
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
-from hybrid_models.evaluation import PhysicsOnly, physics_identity, seed_row
+from hybrid_models.evaluation import PhysicsOnly, physics_identity, physics_label, seed_row
 from hybrid_models.metrics import StepErrors, forecast_metrics
 from hybrid_models.models import predict
 from hybrid_models.nets import HybridModel
@@ -194,8 +194,8 @@ def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
             'label': m.label, 'metrics': metrics[0]}
         row['per_seed_metrics'] = metrics
         if (m.label, seeds[0]) in physics:
-            own = [_physics_pooled(physics[(m.label, s)], true, spec, physics_rows, curves,
-                                   scale) for s in seeds]
+            own = [_physics_pooled(physics[(m.label, s)], m.label, true, spec, physics_rows,
+                                   curves, scale) for s in seeds]
             row['physics'] = sorted({p['label'] for p in own})
             row['harms_vs_physics'] = [harms(mm['profile'], p['metrics']['profile'])
                                        for mm, p in zip(metrics, own, strict=True)]
@@ -213,14 +213,14 @@ def _position_curve(pred: np.ndarray, true: np.ndarray, spec) -> list[float]:
     return (errors.position / errors.count).tolist()
 
 
-def _physics_pooled(per_fold: list, true: np.ndarray, spec, physics_rows: dict,
-                    curves: dict, scale: np.ndarray) -> dict:
+def _physics_pooled(per_fold: list, owner: str, true: np.ndarray, spec,
+                    physics_rows: dict, curves: dict, scale: np.ndarray) -> dict:
     """Return the pooled row of one seed's physics (per fold), made once per physics."""
     key = tuple(fp for fp, _, _ in per_fold)
     if key not in physics_rows:
         name = per_fold[0][1]
-        taken = {row['label'] for row in physics_rows.values()}
-        label = name if name not in taken else f'{name} [{key[0][:6]}]'
+        label = physics_label(name, key[0], owner,
+                              {row['label'] for row in physics_rows.values()})
         pred = np.concatenate([forecast() for _, _, forecast in per_fold])
         physics_rows[key] = {'label': label,
                              'metrics': forecast_metrics(pred, true, spec, state_std=scale),
