@@ -70,7 +70,8 @@ class ModelPlan:
 
 
 def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
-               val_fraction: float = 0.1, fold_by: str | None = None) -> list[Fold]:
+               val_fraction: float = 0.1, fold_by: str | None = None,
+               min_val_samples: int = 0) -> list[Fold]:
     """
     Write the fold views under ``out/folds`` and return them.
 
@@ -78,7 +79,9 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
     shuffled with ``seed`` and dealt into ``folds`` test groups. ``fold_by`` (a regular
     expression) instead makes one fold per distinct match in the recordings' names, e.g.
     one per kind of manoeuvre; recordings it does not match always train. Of each fold's
-    other recordings, ``val_fraction`` (at least one) validate and the rest train.
+    other recordings, ``val_fraction`` (at least one) validate and the rest train; a
+    validating recording needs a run of ``min_val_samples`` (a window and its horizon:
+    training selects on validation forecasts), so shorter ones train.
     """
     if folds is None and fold_by is None:
         splits = [{name: dataset.run_ids(name) for name in ('train', 'val', 'test')}]
@@ -94,6 +97,7 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
         for k, test in enumerate(groups):
             rest = [r for r in order if r not in test]
             rest = [rest[i] for i in np.random.default_rng([seed, k]).permutation(len(rest))]
+            rest = _long_enough_first(rest, recordings, dataset, min_val_samples, k)
             n_val = max(1, round(val_fraction * len(rest)))
             runs = {name: sorted(run for rec in recs for run in recordings[rec])
                     for name, recs in (('test', test), ('val', rest[:n_val]),
@@ -105,6 +109,19 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
         resplit(dataset, path, split, note)
         out_folds.append(Fold(k, path, *(tuple(split[s]) for s in ('train', 'val', 'test'))))
     return out_folds
+
+
+def _long_enough_first(names: list[str], recordings: dict[str, list[str]], dataset: Dataset,
+                       min_samples: int, fold: int) -> list[str]:
+    """Reorder ``names`` so recordings with a run of ``min_samples`` come first."""
+    samples = {r['id']: int(r['n_samples']) for r in dataset.manifest['runs']}
+    longest = {name: max(samples[run] for run in recordings[name]) for name in names}
+    long = [name for name in names if longest[name] >= min_samples]
+    if not long:
+        raise ValueError(f'fold {fold}: no recording outside its test runs has a run of '
+                         f'{min_samples} samples (a forecast window) to validate on; use '
+                         f'fewer folds or a shorter window or horizon')
+    return long + [name for name in names if longest[name] < min_samples]
 
 
 def _test_groups(order: list[str], folds: int | None, fold_by: str | None,
