@@ -87,7 +87,7 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
 
 
 def min_val_samples(vessel, args) -> int:
-    """Samples a validating run needs: one forecast's window and horizon (training's)."""
+    """Return the samples a validating run needs: one forecast's window and horizon."""
     window, horizon, _ = evaluation_protocol(vessel, args.window, args.horizon, 1)
     return window + horizon
 
