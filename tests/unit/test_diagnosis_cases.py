@@ -11,14 +11,17 @@ import json
 
 import pytest
 
+from vessel_description import load_vessel
 from vessel_diagnosis.library import load_library
 from vessel_diagnosis.pipeline import diagnose, name_missing_physics
 from vessel_diagnosis.recordings import load_recordings
 from vessel_diagnosis.scenarios import load_scenario, simulate_scenario
 from vessel_diagnosis.settings import load_settings
-from vessel_physics.augmented import load_physics
+from vessel_physics.patrol import FAMILY
+from vessel_physics.physics_file import load_physics
 
 SMALL = {'waves': {'components': 12}}          # a coarser sea: faster, same physics
+SHIP = load_vessel('patrol_boat')
 SETTINGS = load_settings(overrides={'selection': {'bootstrap': 50, 'rounds': 2}})
 
 
@@ -32,7 +35,8 @@ def identified(tmp_path_factory):
                                     seed=11, overrides=SMALL)
             scenario = load_scenario(name)
             cache[name] = (scenario, name_missing_physics(
-                load_recordings([out]), scenario.nominal, SETTINGS, load_library()), out)
+                load_recordings([out]), scenario.nominal, SETTINGS, load_library(None, FAMILY),
+                SHIP), out)
         return cache[name][:2]
     run.data = lambda name: cache[name][2]
     return run
@@ -75,7 +79,7 @@ def test_constant_orders_cannot_be_diagnosed(identified):
     assert named.status == scenario.status == 'insufficient_excitation'
     assert named.records == []
     assert {'propulsion', 'wind'} <= set(named.not_checkable)
-    assert named.signals['rudder_deg']['std_within_runs'] < 0.1   # what the report says
+    assert named.signals['delta_port_rad']['std_within_runs'] < 0.002   # what the report says
 
 
 FINDING_FIELDS = {'dof', 'term', 'category', 'coefficient', 'unit', 'ci95',
@@ -90,7 +94,7 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
         'selection': {'bootstrap': 50, 'rounds': 2},
         # 6-minute runs: forecasts short enough to fit after the calibration span, so that
         # the held-out forecasts can show that the augmented physics earns its file.
-        'evaluation': {'calibration_s': 60, 'horizon': 200, 'stride': 40},
+        'evaluation': {'calibration_s': 60, 'horizon_s': 200, 'stride_s': 40},
         'excitation': {'min_duration_s': 600}})
     result = diagnose([data], data / 'nominal_physics.yaml', tmp_path, settings)
     on_disk = json.loads((tmp_path / 'findings.json').read_text())
