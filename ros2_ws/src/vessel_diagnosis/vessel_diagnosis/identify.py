@@ -637,8 +637,9 @@ class Identifier:
 
         Their size and interval at the fitted point with them, why they were left out,
         and whether they are certain: selected again, at least ``inclusion_threshold`` of
-        the time, when offered alone at the final point (every kept term fitted), and an
-        interval that excludes zero.
+        the time, when offered alone at the final point (every kept term fitted), an
+        interval that excludes zero, and a size of at least ``kept_out_share`` of the
+        library's physically relevant scale (a GM 20 % low is; a damping 5 % off is not).
         """
         names = [n for n in pruned if n in selected and n in values and n != CURRENT
                  and n in self.pruned_gain]
@@ -663,11 +664,15 @@ class Identifier:
             k = [j for j, c in enumerate(design.columns) if c.candidate == name][0]
             ci = self.widened(values[name], boot[:, k], hetero.get(name, {}).get('tau', 0.0))
             p_final = float(probability[name])
+            relevant = self.settings.validation.kept_out_share * self.library.absolute_scale(
+                self.library.by_name[name], self.nominal)
             out[name] = {'coefficient': float(values[name]), 'ci95': ci,
+                         'relevant_size': float(relevant),
                          'inclusion_probability': p_final,
                          'selected_probability': selected[name].inclusion_probability,
                          'held_out_gain': float(self.pruned_gain[name]),
                          'why': pruned[name],
                          'certain': bool(p_final >= cfg.inclusion_threshold
-                                         and not ci[0] <= 0.0 <= ci[1])}
+                                         and not ci[0] <= 0.0 <= ci[1]
+                                         and abs(values[name]) >= relevant)}
         return out

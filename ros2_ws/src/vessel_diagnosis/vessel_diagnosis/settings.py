@@ -81,6 +81,7 @@ class Validation:
     folds: int
     min_improvement: float
     max_parameter_change: float
+    kept_out_share: float
 
 
 @dataclass(frozen=True)
