@@ -102,7 +102,6 @@ def trained(request, tmp_path_factory):
 def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launcher,
                                                                   ros_node):
     from hybrid_predictor_interfaces.msg import Forecast
-
     from vessel_description import load_vessel
 
     vessel, checkpoint = trained

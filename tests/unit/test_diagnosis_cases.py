@@ -7,11 +7,14 @@ spectrum) and identified with the nominal physics that lacks
 the effect. The full-size proof with held-out improvements is test_diagnosis_proof.py.
 """
 
+import copy
 import json
 
 import pytest
 
 from vessel_description import load_vessel
+from vessel_diagnosis import scenarios
+from vessel_diagnosis.findings import summary_line
 from vessel_diagnosis.library import load_library
 from vessel_diagnosis.pipeline import diagnose, name_missing_physics
 from vessel_diagnosis.recordings import load_recordings
@@ -126,3 +129,25 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
     for figure in ('locate_force_maps.png', 'locate_multistep_maps.png', 'locate_windows.png',
                    'candidates.png', 'before_after.png'):
         assert (tmp_path / figure).stat().st_size > 10_000
+
+
+def test_a_certain_term_pruned_for_its_small_effect_is_still_reported(tmp_path, monkeypatch):
+    """Twice the nominal surge added mass: certain, yet forecasts barely change."""
+    nominal = load_scenario('control').nominal
+    truth = 2.0 * nominal.parameter('Xudot')
+    data = copy.deepcopy(scenarios.load_scenario_file())
+    data['vessels']['patrol_boat']['scenarios']['heavy_surge'] = {
+        'description': 'twice the surge added mass', 'truth_parameters': {'Xudot': truth}}
+    monkeypatch.setattr(scenarios, 'load_scenario_file', lambda: data)
+    out = simulate_scenario('heavy_surge', tmp_path, runs=6, hours=0.1, seed=11,
+                            overrides=SMALL)
+    named = name_missing_physics(load_recordings([out]), nominal, SETTINGS,
+                                 load_library(None, FAMILY), SHIP)
+    assert named.status == 'findings' and named.records == []
+    [kept] = named.kept_out
+    lo, hi = kept['ci95']
+    assert kept['parameter'] == 'Xudot' and lo <= truth - nominal.parameter('Xudot') <= hi < 0
+    assert kept['held_out_gain'] < SETTINGS.validation.min_improvement
+    assert 'held-out predictions' in kept['why_kept_out']
+    line = summary_line(named.status, named.records, named.not_checkable, kept_out=named.kept_out)
+    assert 'kept out of the augmented physics' in line and 'added_mass (Xudot' in line
