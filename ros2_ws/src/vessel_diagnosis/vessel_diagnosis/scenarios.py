@@ -5,16 +5,19 @@ Each vessel of the file (one per physics family: the patrol boat, the KVLCC2 mod
 Otter) has its scenarios. ``simulate_scenario(name, out, runs, hours, seed, vessel=...)``
 writes a dataset (the format of ``vessel_datasets.format``) from the simulator with the
 scenario's effect, plus ``nominal_physics.yaml`` (and its parameter file) beside it: the
-physics that lacks the effect. The manifest keeps every run's sea state, wind and current
-(the truth, for checking what was found).
+physics that lacks the effect. The manifest keeps every run's sea state, wind, current
+and, where the scenario spreads parameters over runs, their values (the truth, for
+checking what was found).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from collections.abc import Mapping
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 from pathlib import Path
 
+import numpy as np
 import yaml
 
 from vessel_datasets.format import write_dataset
@@ -54,6 +57,23 @@ class Scenario:
     expect: tuple[str, ...]
     status: str
     affected_states: tuple[str, ...]
+    run_spread: Mapping[str, float] = field(default_factory=dict)
+
+    def run_physics(self, seed: int, run: int) -> Physics:
+        """
+        Return the simulated physics of one run.
+
+        With ``run_spread``, each named parameter is the scenario's value times
+        (1 + spread z), z standard normal drawn from (seed, run): a vessel whose
+        parameter differs from run to run, which one global coefficient cannot fit.
+        """
+        physics = self.simulation.physics
+        if not self.run_spread:
+            return physics
+        rng = np.random.default_rng([seed, run])
+        return physics.with_parameters(**{
+            name: physics.parameter(name) * (1.0 + spread * rng.standard_normal())
+            for name, spread in self.run_spread.items()})
 
 
 def _merge(base: dict, over: dict) -> dict:
@@ -81,11 +101,16 @@ def load_scenario(name: str, overrides: dict | None = None,
         cfg = replace(cfg, physics=cfg.physics.with_parameters(**spec['truth_parameters']))
     if spec.get('nominal_terms'):
         nominal = nominal.replace(terms=tuple(spec['nominal_terms']))
+    if spec.get('nominal_factors'):
+        nominal = nominal.with_parameters(**{
+            name: nominal.parameter(name) * factor
+            for name, factor in spec['nominal_factors'].items()})
     nominal = nominal.replace(source=f'scenario {vessel}/{name}')
     expect = tuple(spec.get('expect', ()))
     status = str(spec.get('status', 'findings' if expect else 'nothing_significant'))
     return Scenario(name, vessel, str(spec.get('description', '')), cfg, nominal, expect,
-                    status, tuple(spec.get('affected_states', ())))
+                    status, tuple(spec.get('affected_states', ())),
+                    dict(spec.get('run_spread', {})))
 
 
 def simulate_scenario(name: str, out: str | Path, runs: int, hours: float, seed: int,
@@ -98,9 +123,11 @@ def simulate_scenario(name: str, out: str | Path, runs: int, hours: float, seed:
     tables, sources = {}, {}
     seconds = hours * 3600.0
     description = simulation_vessel(cfg)
+    chunk = 1 if scenario.run_spread else chunk       # one physics per run
     for first in range(0, runs, chunk):
         n = min(chunk, runs - first)
-        sim = Simulator(cfg, n_runs=n, seed=seed, run_offset=first)
+        physics = scenario.run_physics(seed, first)
+        sim = Simulator(replace(cfg, physics=physics), n_runs=n, seed=seed, run_offset=first)
         data = sim.run(seconds)
         for j in range(n):
             run_id = f'run_{first + j:03d}'
@@ -109,6 +136,8 @@ def simulate_scenario(name: str, out: str | Path, runs: int, hours: float, seed:
                       'wind_mean_speed_mps': float(sim.wind.mean_speed[j]),
                       'current_speed_mps': float(sim.current.speed0[j]),
                       'current_direction_rad': float(sim.current.direction[j])}
+            if scenario.run_spread:
+                source['parameters'] = {p: physics.parameter(p) for p in scenario.run_spread}
             if sim.waves.active:
                 source.update({'wave_hs_m': float(sim.waves.hs[j]),
                                'wave_tp_s': float(sim.waves.tp[j])})
