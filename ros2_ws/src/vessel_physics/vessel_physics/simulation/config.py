@@ -3,8 +3,8 @@ Simulation configuration: schema, defaults, validation and loading.
 
 ``load_simulation(path or mapping)`` returns a frozen ``SimConfig``. Every key has a type,
 a default and an allowed range in ``SCHEMA``; a mapping only needs the keys it changes.
-The default scenario, ``config/simulation.yaml`` (the patrol boat), spells out every
-default; ``config/simulation/<vessel>.yaml`` are the other shipped vessels'. Any invalid
+The shipped scenario of each vessel is ``config/simulation/<vessel>.yaml``; the default,
+the patrol boat's, spells out every key. Any invalid
 key or value raises ``ConfigError`` whose message is one line naming the key and the
 allowed values (unknown keys get a did-you-mean).
 
