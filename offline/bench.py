@@ -9,6 +9,7 @@ an absolute time that depends on the machine) and states its goals beside the fi
     python offline/bench.py convert    # bag conversion vs a bare rosbags pass
     python offline/bench.py forecast   # predictor latency vs a naive loop
     python offline/bench.py soak       # concurrent what-if clients against the node
+    python offline/bench.py outage     # /diagnostics while a source pauses, dies, doubles
     python offline/bench.py scale      # 1 vs 2 training processes, 10x data, 1 vs 2 workers
 """
 
@@ -25,6 +26,8 @@ SUITES = {
     'convert': ('benchmarks.convert', 'bag-to-dataset conversion throughput'),
     'forecast': ('benchmarks.forecast', '900-step forecast latency and throughput'),
     'soak': ('benchmarks.soak', 'service soak: every request answered, forecasts flowing'),
+    'outage': ('benchmarks.outage', 'health under outages: time to ERROR and to recovery, '
+                                    'per vessel, in either clock mode'),
     'scale': ('benchmarks.scale', 'scaling out: training processes and memory, '
                                   'conversion workers'),
 }

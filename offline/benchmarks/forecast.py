@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-import subprocess
 import sys
 import time
 
@@ -93,24 +92,35 @@ def matmul_rate(size: int = 512, seconds: float = 1.0) -> float:
 
 def node_latency(model: Path, samples: int) -> dict:
     """Publish inputs to a predictor process; time state publish -> forecast received."""
+    from vessel_bringup.processes import Children
+
+    os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', ROS_DOMAIN_ID=os.environ.get(
+        'ROS_DOMAIN_ID', str(180 + os.getpid() % 40)))
+    # The predictor is stopped however this ends, SIGINT/SIGTERM/SIGHUP included.
+    with Children() as children:
+        children.node('hybrid_predictor', 'predictor', '--log-level', 'warn',
+                      params={'model_path': model, 'forecast_period': 0.0})
+        latencies = timed_states(samples)
+    if not latencies:
+        return {'error': 'no forecast arrived from the predictor process'}
+    p50, p99 = percentiles(latencies)
+    return {'node_p50_ms': round(p50, 2), 'node_p99_ms': round(p99, 2),
+            'node_forecasts_timed': len(latencies), 'node_states_sent': samples}
+
+
+def timed_states(samples: int) -> list[float]:
+    """Publish a window, then ``samples`` live states; return each one's forecast delay (s)."""
     from geometry_msgs.msg import Vector3Stamped
     from nav_msgs.msg import Odometry
     import rclpy
     from sensor_msgs.msg import JointState
+    from vessel_bringup.processes import rclpy_options
 
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge import messages as m
     from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
-    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST',
-               ROS_DOMAIN_ID=os.environ.get('ROS_DOMAIN_ID', str(180 + os.getpid() % 40)))
-    os.environ.update(env)
-    exe = REPO / 'ros2_ws' / 'install' / 'hybrid_predictor' / 'lib' / 'hybrid_predictor' / \
-        'predictor'
-    process = subprocess.Popen([str(exe), '--ros-args', '-p', f'model_path:={model}',
-                                '-p', 'forecast_period:=0.0', '--log-level', 'warn'],
-                               env=env, start_new_session=True)
-    rclpy.init()
+    rclpy.init(**rclpy_options())
     # In the nodes' namespace, so the shared relative topic names resolve as theirs do.
     node = rclpy.create_node('bench_forecast_client', namespace=DEFAULT_NAMESPACE)
     pubs = {'odom': node.create_publisher(Odometry, m.ODOM_TOPIC, 10),
@@ -153,13 +163,7 @@ def node_latency(model: Path, samples: int) -> dict:
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-        process.send_signal(2)
-        process.wait(15)
-    if not latencies:
-        return {'error': 'no forecast arrived from the predictor process'}
-    p50, p99 = percentiles(latencies)
-    return {'node_p50_ms': round(p50, 2), 'node_p99_ms': round(p99, 2),
-            'node_forecasts_timed': len(latencies), 'node_states_sent': samples}
+    return latencies
 
 
 def run(args) -> dict:

@@ -8,7 +8,8 @@ listens to /vessel/forecast. A client answered "busy" waits ``--busy-backoff`` s
 before it sends again, as a well-behaved client does. Figures: requests sent, answered
 (success, busy or another failure) and never answered; p50/p99 latency; forecasts
 published during the soak and the longest silence between them, in message time
-(forecast periods) and wall time; the predictor's resident memory at the start, after
+(forecast periods) and wall time; how many /diagnostics reports said ERROR or WARN
+meanwhile, and why; the predictor's resident memory at the start, after
 the warm-up (the first tenth of the soak, at most 60 s: buffers and caches filling),
 at the end, and 20 samples in between (growth that levels off, or keeps on).
 """
@@ -16,17 +17,13 @@ at the end, and 20 samples in between (growth that levels off, or keeps on).
 from __future__ import annotations
 
 from array import array
-import os
 from pathlib import Path
-import signal
-import subprocess
 import threading
 import time
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
-INSTALL = REPO / 'ros2_ws' / 'install'
 GOALS = {'answered_percent': '== 100', 'longest_silence_periods': '<= 2',
          'rss_growth_percent': '< 5 (over 10 minutes)'}
 HORIZON = 900
@@ -70,28 +67,6 @@ def rss_mb(pid: int) -> float:
     raise RuntimeError(f'no VmRSS for process {pid}')
 
 
-def start(package: str, executable: str, *params: str, log: Path) -> subprocess.Popen:
-    """Start an installed node executable in its own process group, output to ``log``."""
-    argv = [str(INSTALL / package / 'lib' / package / executable), '--ros-args']
-    for p in params:
-        argv += ['-p', p]
-    with open(log, 'wb') as out:
-        return subprocess.Popen(argv, stdout=out, stderr=subprocess.STDOUT,
-                                start_new_session=True, cwd=REPO)
-
-
-def stop(process: subprocess.Popen) -> None:
-    """Stop a process group: SIGINT, then SIGKILL."""
-    for sig in (signal.SIGINT, signal.SIGKILL):
-        if process.poll() is not None:
-            return
-        os.killpg(process.pid, sig)
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            continue
-
-
 def make_plans(count: int, seed: int = 0):
     """Return ``count`` ControlPlans of steady shaft and rudder variations."""
     from hybrid_predictor_interfaces.msg import ControlPlan
@@ -125,6 +100,7 @@ class Load:
         self.sent = self.success = self.busy = self.failed = 0
         self.latencies: list[float] = []
         self.success_latencies: list[float] = []
+        self.busy_latencies: list[float] = []
         self.failures: dict[str, int] = {}
         self.deadline = 0.0
 
@@ -152,6 +128,7 @@ class Load:
                 self.success_latencies.append(time.monotonic() - sent_at)
             elif busy:
                 self.busy += 1
+                self.busy_latencies.append(time.monotonic() - sent_at)
             else:
                 self.failed += 1
                 key = response.message[:60]
@@ -173,21 +150,33 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
          forecast_period: float = 1.0, busy_backoff: float = 0.2,
          log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
     """Run the soak (see the module docstring) and return its figures."""
+    from vessel_bringup.processes import Children
+
+    log_dir = Path(log_dir or REPO / 'ros2_ws' / 'log' / 'soak')
+    # The nodes are stopped however the soak ends: normally, by an error, or by SIGINT,
+    # SIGTERM or SIGHUP of this process (a `timeout` around it).
+    with Children(log_dir) as children:
+        return _soak(children, log_dir, duration, clients, concurrency, plans, rtf,
+                     forecast_period, busy_backoff, predictor_params)
+
+
+def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: int,
+          plans: int, rtf: float, forecast_period: float, busy_backoff: float,
+          predictor_params) -> dict:
+    from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
     from rclpy.executors import MultiThreadedExecutor
+    from vessel_bringup.processes import rclpy_options
 
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge.messages import seconds_from_stamp
 
-    log_dir = Path(log_dir or REPO / 'ros2_ws' / 'log' / 'soak')
-    log_dir.mkdir(parents=True, exist_ok=True)
-    sim = start('ship_sim_node', 'simulator', 'seed:=5', f'real_time_factor:={rtf}',
-                log=log_dir / 'simulator.log')
-    predictor = start('hybrid_predictor', 'predictor', 'use_sim_time:=true',
-                      f'max_plans:={max(plans, 1)}', f'forecast_period:={forecast_period}',
-                      *predictor_params, log=log_dir / 'predictor.log')
+    children.node('ship_sim_node', 'simulator', params={'seed': 5, 'real_time_factor': rtf})
+    extra = [arg for p in predictor_params for arg in ('-p', p)]
+    predictor = children.node('hybrid_predictor', 'predictor', *extra, params={
+        'use_sim_time': True, 'max_plans': max(plans, 1), 'forecast_period': forecast_period})
     context = rclpy.Context()
-    rclpy.init(context=context)
+    rclpy.init(context=context, **rclpy_options())
     node = rclpy.create_node('soak_client', context=context)
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(node)
@@ -195,6 +184,9 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
     forecasts: list[tuple[float, float]] = []   # (wall s, stamp s)
     node.create_subscription(Forecast, '/vessel/forecast', lambda m: forecasts.append(
         (time.monotonic(), seconds_from_stamp(m.header.stamp))), 50)
+    reports: list[tuple[float, int, str]] = []   # (wall s, level, message)
+    node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: reports.extend(
+        (time.monotonic(), s.level[0], s.message) for s in m.status), 50)
     load = Load(node, clients, concurrency, plans, busy_backoff)
     spinner.start()
     try:
@@ -229,15 +221,16 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
         executor.shutdown(timeout_sec=5)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
-        stop(predictor)
-        stop(sim)
     during = [(w, s) for w, s in forecasts if started <= w <= ended]
     walls = np.array([w for w, _ in during] or [started])
     stamps = np.array([s for _, s in during])
     wall_gaps = np.diff(np.concatenate([[started], walls, [ended]]))
     stamp_gaps = np.diff(stamps) if len(stamps) > 1 else np.array([np.inf])
+    during_reports = [(level, message) for w, level, message in reports
+                      if started <= w <= ended]
     latencies = np.asarray(load.latencies) * 1e3
     successes = np.asarray(load.success_latencies) * 1e3
+    busy = np.asarray(load.busy_latencies) * 1e3
     return {
         'duration_s': round(ended - started, 1),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': plans,
@@ -258,6 +251,10 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
             successes) else None,
         'success_latency_p99_ms': round(float(np.percentile(successes, 99)), 1) if len(
             successes) else None,
+        'busy_latency_p50_ms': round(float(np.percentile(busy, 50)), 1) if len(
+            busy) else None,
+        'busy_latency_p99_ms': round(float(np.percentile(busy, 99)), 1) if len(
+            busy) else None,
         'forecasts_published': len(during),
         'longest_silence_periods': round(float(stamp_gaps.max()) / forecast_period, 2),
         'longest_silence_wall_s': round(float(wall_gaps.max()), 3),
@@ -269,6 +266,11 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
         'rss_growth_percent': round(100.0 * (rss_end - rss_start) / rss_start, 2),
         'rss_growth_after_warm_up_percent': round(
             100.0 * (rss_end - (rss_warm or rss_end)) / (rss_warm or rss_end), 2),
+        'diagnostics_reports': len(during_reports),
+        'diagnostics_error_reports': sum(level == 2 for level, _ in during_reports),
+        'diagnostics_warn_reports': sum(level == 1 for level, _ in during_reports),
+        'diagnostics_error_messages': sorted({m for level, m in during_reports
+                                              if level == 2})[:5],
         'predictor_alive': alive,
         'goals': GOALS,
     }

@@ -9,11 +9,9 @@ the whole process group.
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
-import signal
 import subprocess
 import sys
 import threading
@@ -89,26 +87,12 @@ class Launcher:
         """Start a Python script with this interpreter (the venv's)."""
         return self.start([sys.executable, str(script), *args], name or script.stem, env)
 
-    def stop(self, process: Process, timeout: float = 10.0) -> int:
+    def stop(self, process: Process, timeout: float = 10.0) -> int | None:
         """Stop one process group gently, then firmly; return its exit code."""
-        for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 3.0),
-                          (signal.SIGKILL, 3.0)):
-            if process.popen.poll() is not None:
-                break
-            leader_only = process.supervisor and sig == signal.SIGINT
-            try:
-                (os.kill if leader_only else os.killpg)(process.popen.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                process.popen.wait(wait)
-            except subprocess.TimeoutExpired:
-                continue
-        if process.supervisor:
-            # Children a supervisor failed to stop are stopped with it.
-            with contextlib.suppress(ProcessLookupError):
-                os.killpg(process.popen.pid, signal.SIGKILL)
-        return process.popen.wait(5.0)
+        from vessel_bringup.processes import STOP_STEPS, stop_group
+
+        steps = ((STOP_STEPS[0][0], timeout), *STOP_STEPS[1:])
+        return stop_group(process.popen, leader_first=process.supervisor, steps=steps)
 
     def stop_all(self) -> None:
         """Stop every process this launcher started."""

@@ -66,8 +66,9 @@ def fed(tmp_path_factory):
 def plan(n=900, **fields):
     from hybrid_predictor_interfaces.msg import ControlPlan
 
-    return ControlPlan(shaft_speed=[85.0] * n, rudder_port=[0.01] * n, rudder_stbd=[0.01] * n,
-                       **fields)
+    fields = {'shaft_speed': [85.0] * n, 'rudder_port': [0.01] * n,
+              'rudder_stbd': [0.01] * n, **fields}
+    return ControlPlan(**fields)
 
 
 def test_malformed_plans_are_refused_on_the_service_and_the_topic(fed):
@@ -82,7 +83,12 @@ def test_malformed_plans_are_refused_on_the_service_and_the_topic(fed):
                        ([plan(), plan(wind_speed=[5.0] * 900, wind_direction=[0.1] * 899)],
                         'plan 1: wind_speed has 900 entries and wind_direction 899'),
                        ([plan(wind_speed=[-1.0] * 900, wind_direction=[0.0] * 900)],
-                        'wind_speed must be >= 0')):
+                        'wind_speed must be >= 0'),
+                       # Every field against the vessel's declared range (#25): 1e6 m/s of
+                       # wind used to pass and came back as a non-finite forecast.
+                       ([plan(wind_speed=[1e6] * 900, wind_direction=[0.0] * 900)],
+                        'wind_speed[0] = 1e+06 outside [0, 40] m/s'),
+                       ([plan(shaft_speed=[-5.0] * 900)], 'shaft_speed[0] = -5 outside')):
         answer = graph.call(client, Predict.Request(plans=plans))
         assert not answer.success and why in answer.message, answer.message
         assert len(answer.forecasts) == 0
@@ -99,6 +105,42 @@ def test_malformed_plans_are_refused_on_the_service_and_the_topic(fed):
     count = len(graph.forecasts)
     assert wait_for(lambda: len(graph.forecasts) >= count + 2, 10)
     assert predictor.alive()
+
+
+def test_a_forecast_says_which_plan_it_followed_or_that_it_held_the_controls(fed):
+    from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
+    from hybrid_predictor_interfaces.srv import Predict
+    from vessel_ros_bridge import messages as m
+
+    graph, _ = fed
+    held = graph.forecasts[-1][1]
+    assert held.controls_assumed == Forecast.CONTROLS_HELD and held.plan_id == ''
+    assert held.relative_threshold == 0.15 and held.bounded
+    pub = graph.node.create_publisher(ControlPlan, '/vessel/control_plan', 10)
+    assert wait_for(lambda: pub.get_subscription_count() > 0, 10)
+    stamp = time.time()
+    topic_plan = plan(n=1000, plan_id='turn-7')
+    topic_plan.header.stamp = m.stamp_from_seconds(stamp)
+    pub.publish(topic_plan)
+
+    def following():
+        return [f for _, f in graph.forecasts if f.controls_assumed == Forecast.CONTROLS_PLAN]
+    assert wait_for(following, 10), [f.controls_assumed for _, f in graph.forecasts[-3:]]
+    first = following()[0]
+    assert first.plan_id == 'turn-7'
+    assert m.seconds_from_stamp(first.plan_stamp) == pytest.approx(stamp, abs=1e-6)
+    # plan_timeout (5 s of message time) later the plan has lapsed, and the forecast says so.
+    time.sleep(5.5)
+    count = len(graph.forecasts)
+    assert wait_for(lambda: len(graph.forecasts) >= count + 2, 10)
+    assert graph.forecasts[-1][1].controls_assumed == Forecast.CONTROLS_HELD
+    # What-if answers name the request's plan.
+    client = graph.node.create_client(Predict, '/vessel/predictor/predict')
+    assert client.wait_for_service(timeout_sec=30)
+    answer = graph.call(client, Predict.Request(plans=[plan(plan_id='a'), plan(plan_id='b')]))
+    assert answer.success, answer.message
+    assert [(f.controls_assumed, f.plan_id) for f in answer.forecasts] == [
+        (Forecast.CONTROLS_PLAN, 'a'), (Forecast.CONTROLS_PLAN, 'b')]
 
 
 def test_absurd_values_and_bad_quaternions_are_rejected_and_counted(fed):
@@ -259,3 +301,63 @@ def test_silence_turns_diagnostics_error_within_two_forecast_periods(fed):
     age = float(graph.values()['input_age_s'])
     time.sleep(1.0)
     assert float(graph.values()['input_age_s']) >= age + 0.5
+
+
+@pytest.mark.slow  # about 40 s: two more predictors compile their model
+def test_an_unbounded_model_is_a_warning_unless_the_user_allowed_it(tmp_path):
+    from diagnostic_msgs.msg import DiagnosticArray
+    import rclpy
+    from rclpy.executors import MultiThreadedExecutor
+
+    from hybrid_models.cli.set_threshold import set_threshold
+    from hybrid_predictor.node import default_model_path
+    from hybrid_predictor_interfaces.msg import Forecast
+
+    model = tmp_path / 'unbounded.safetensors'
+    set_threshold(default_model_path(), None, model)
+    launcher = Launcher(tmp_path)
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = rclpy.create_node('unbounded_test', context=context)
+    forecasts = {'warned': [], 'allowed': []}
+    statuses = {}
+    for ns in forecasts:
+        node.create_subscription(Forecast, f'/{ns}/forecast', forecasts[ns].append, 10)
+    node.create_subscription(DiagnosticArray, '/diagnostics', lambda msg: statuses.update(
+        {s.name: s for s in msg.status}), 50)
+    executor = MultiThreadedExecutor(num_threads=2, context=context)
+    executor.add_node(node)
+    try:
+        for ns, allowed in (('warned', 'false'), ('allowed', 'true')):
+            launcher.start_node('hybrid_predictor', 'predictor', '--ros-args', '-r',
+                                f'__ns:=/{ns}', '-p', f'model_path:={model}',
+                                '-p', f'allow_unbounded:={allowed}', name=f'predictor_{ns}')
+        feeders = [Feeder(node, f'/{ns}') for ns in forecasts]
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and not all(
+                node.count_subscribers(f'/{ns}/odom') for ns in forecasts):
+            executor.spin_once(timeout_sec=0.1)
+        time.sleep(1.0)
+        now = time.time()
+        for k in range(int(WINDOW_S) + 5):
+            for feeder in feeders:
+                feeder.sample(now - WINDOW_S - 5 + k)
+        while time.monotonic() < deadline and not all(len(f) >= 4 for f in forecasts.values()):
+            for feeder in feeders:
+                feeder.sample(time.time())
+            end = time.monotonic() + 0.2
+            while time.monotonic() < end:
+                executor.spin_once(timeout_sec=0.05)
+        assert all(len(f) >= 4 for f in forecasts.values()), launcher.processes[0].output()
+        for ns in forecasts:
+            assert not forecasts[ns][-1].bounded
+            assert math.isnan(forecasts[ns][-1].relative_threshold)
+        warned, allowed = (statuses[f'/{ns}/predictor: forecast'] for ns in forecasts)
+        assert warned.level == b'\x01' and 'served unbounded' in warned.message, warned
+        assert 'served unbounded' not in allowed.message, allowed
+        assert {kv.key: kv.value for kv in allowed.values}['bounded'] == 'false'
+    finally:
+        executor.shutdown(timeout_sec=5)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+        launcher.stop_all()

@@ -227,14 +227,15 @@ def test_an_incomplete_window_gives_a_clear_status_and_no_forecast(launcher, ros
 class Feeder:
     """Publish the predictor's inputs from the test, stamped on the wall clock."""
 
-    def __init__(self, node):
+    def __init__(self, node, namespace: str | None = None):
         from geometry_msgs.msg import Vector3Stamped
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import JointState
 
         from vessel_ros_bridge import messages as m
-        from vessel_ros_bridge.names import DEFAULT_NAMESPACE as NS
+        from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
+        NS = namespace or DEFAULT_NAMESPACE  # noqa: N806 - the namespace, as a constant
         self.m = m
         # The test's node is in the root namespace: the nodes' relative names, made absolute.
         self.odom = node.create_publisher(Odometry, f'{NS}/{m.ODOM_TOPIC}', 200)
@@ -264,11 +265,14 @@ def wait_for_predictor(launcher, ros_node, *params):
 def test_a_burst_is_read_through_and_the_latest_sample_forecast(launcher, ros_node):
     import time
 
+    from diagnostic_msgs.msg import DiagnosticArray
+
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge.messages import seconds_from_stamp
 
-    forecasts = []
+    forecasts, diagnostics = [], []
     ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
     predictor = wait_for_predictor(launcher, ros_node)
     feeder = Feeder(ros_node)
     spin_until(ros_node, lambda: False, 1.0)
@@ -278,7 +282,9 @@ def test_a_burst_is_read_through_and_the_latest_sample_forecast(launcher, ros_no
         feeder.sample(t)
     assert spin_until(ros_node, lambda: any(
         abs(seconds_from_stamp(f.header.stamp) - stamps[-1]) < 1e-6 for f in forecasts), 20), \
-        'the newest sample of the burst was never forecast'
+        'the newest sample of the burst was never forecast: ' + '; '.join(
+            f'{s.message} {[(kv.key, kv.value) for kv in s.values]}'
+            for d in diagnostics[-1:] for s in d.status)
     spin_until(ros_node, lambda: False, 1.0)
     # Only fresh data is forecast: far fewer forecasts than messages in the burst.
     assert len(forecasts) < len(stamps) / 4, len(forecasts)

@@ -112,3 +112,21 @@ def test_evaluate_gives_each_distinct_physics_its_row_and_seeds_one_row(toy, tmp
     assert rows[1]['metrics']['rmse'] != rows[3]['metrics']['rmse']
     table = (results / 'table.md').read_text()
     assert '| b |' in table and ' ± ' in table.split('| b |')[1].splitlines()[0]
+
+
+def test_folds_by_kind_hold_out_each_kind_and_always_train_on_the_unmatched(toy, tmp_path):
+    toy = Path(shutil.copytree(toy, tmp_path / 'toy'))
+    manifest = json.loads((toy / 'manifest.json').read_text())
+    kinds = ['ZIGZAG_1', 'ZIGZAG_2', 'TURN_1', 'TURN_2', 'FREE_1', 'FREE_2']
+    for entry, kind in zip(manifest['runs'], kinds, strict=True):
+        entry['source'] = {'source_run': kind}
+    (toy / 'manifest.json').write_text(json.dumps(manifest))
+    ds = read_dataset(toy)
+    ids = {kind: entry['id'] for entry, kind in zip(manifest['runs'], kinds, strict=True)}
+    folds = make_folds(ds, tmp_path, None, fold_by='ZIGZAG|TURN')
+    assert [set(f.test) for f in folds] == [{ids['TURN_1'], ids['TURN_2']},
+                                            {ids['ZIGZAG_1'], ids['ZIGZAG_2']}]
+    for f in folds:
+        assert {ids['FREE_1'], ids['FREE_2']} <= set(f.train) | set(f.val)
+    with pytest.raises(ValueError, match='needs at least 2'):
+        make_folds(ds, tmp_path, None, fold_by='FREE')

@@ -87,7 +87,7 @@ def _model(vessel, scale):
     factor = _froude(scale)
     return replace(vessel, particulars={'length_m': vessel.length_m / scale},
                    limits={s: (lo * factor[s], hi * factor[s])
-                           for s, (lo, hi) in vessel.limits.items()})
+                           for s, (lo, hi) in vessel.limits.items() if s in factor})
 
 
 def test_scale_check_is_quiet_when_recordings_and_vessel_file_agree():

@@ -111,3 +111,45 @@ def test_smallest_threshold_on_the_trajectory_error():
     assert smallest_threshold(sweep, {'trajectory': 40.0}, 0.05, trajectory_of) == 0.3
     assert smallest_threshold(sweep, {'trajectory': 500.0}, 0.05, trajectory_of) == 0.0
     assert smallest_threshold(sweep, {'u': 0.1}, 0.05) == 0.3           # one state alone
+
+
+def test_a_schedule_bounds_each_step_by_the_entry_it_ends_in():
+    from hybrid_models.bound import step_bounds
+    b = step_bounds([[0, 0.0], [0.5, 0.1], [1.0, None]], np.array([2.0, 4.0]), 0.1, 12)
+    np.testing.assert_array_equal(b[:5], 0.0)            # steps ending at 0.1 .. 0.5 s
+    np.testing.assert_allclose(b[5:10], [[0.1, 0.2]] * 5)
+    assert np.isinf(b[10:]).all()
+    np.testing.assert_allclose(step_bounds(0.1, np.array([2.0]), 1.0, 3), [[0.1]] * 3)
+    with pytest.raises(ValueError, match='increasing starts'):
+        step_bounds([[0.5, 0.1]], np.array([1.0]), 0.1, 3)
+
+
+def test_a_schedule_served_by_torch_and_the_compiled_engine_alike(tmp_path):
+    from hybrid_models.engine import Forecaster
+    from hybrid_models.models import build_model
+    from hybrid_models.normalization import Normalizer
+    from vessel_description import load_vessel
+    ship = load_vessel('patrol_boat')
+    torch.manual_seed(0)
+    model = build_model({'kind': 'hybrid', 'hidden': 6, 'layers': 1, 'dropout': 0.0,
+                         'physical': {'kind': 'lin'}}, ship).double()
+    with torch.no_grad():
+        model.physical.weight[:, 6:] = 0.9 * torch.eye(5, dtype=torch.float64)
+        model.head.bias.fill_(1.0)
+    model.set_normalization(Normalizer(np.zeros(5), np.ones(5)),
+                            Normalizer(np.zeros(6), np.ones(6)))
+    model.output_range.copy_(torch.ones(5, dtype=torch.float64))
+    schedule = [[0.0, 0.0], [3.0, 0.2]]
+    model.set_threshold(schedule)
+    zw, cw, cf = (torch.randn(1, 4, 5, dtype=torch.float64),
+                  torch.randn(1, 4, 6, dtype=torch.float64), torch.randn(1, 6, 6,
+                                                                        dtype=torch.float64))
+    with torch.no_grad():
+        hybrid, physics, _ = model.eval().forecast(zw, cw, cf, return_parts=True)
+    correction = (hybrid - physics)[0].abs()
+    assert (correction[:3] == 0).all() and (correction[3:] > 0).all()
+    assert (correction[3:] <= 0.1 + 1e-12).all()
+    engine = Forecaster.from_model(model, dtype=np.float64)
+    assert engine.relative_threshold == schedule
+    served = engine.forecast(zw[0].numpy(), cw[0].numpy(), cf.numpy())
+    np.testing.assert_allclose(served.hybrid[0], hybrid[0].numpy(), rtol=1e-9, atol=1e-12)

@@ -10,7 +10,7 @@ from hybrid_models.checkpoint import load_model
 from hybrid_models.data import load_runs
 from hybrid_models.metrics import StepErrors, reported_steps
 from hybrid_models.models import build_model
-from hybrid_models.selection import choose, harms, threshold_grid
+from hybrid_models.selection import choose_schedule, harms, threshold_grid
 from hybrid_models.toy import TOY_VESSEL, write_linear_dataset
 from hybrid_models.training import load_config, train
 from hybrid_models.training.loop import REFERENCE_EPOCH
@@ -21,9 +21,10 @@ ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
 
 
-def profile(position, rmse_u, steps=(1, 2)):
-    return {'steps': list(steps), 'position_m': list(position),
-            'rmse': {'u': list(rmse_u)}}
+def profile(position, normalized, steps=(1, 2), rmse_u=None):
+    out = {'steps': list(steps), 'position_m': list(position), 'normalized': list(normalized),
+           'rmse': {'u': list(rmse_u or normalized)}}
+    return out
 
 
 def test_the_grid_always_holds_the_physics_alone_and_respects_the_cap():
@@ -34,24 +35,49 @@ def test_the_grid_always_holds_the_physics_alone_and_respects_the_cap():
         threshold_grid([-0.1], None)
 
 
-def test_a_threshold_worse_at_any_reported_figure_is_not_admissible():
+def test_a_forecast_worse_in_position_or_state_error_at_a_reported_step_harms():
     physics = profile([1.0, 2.0], [0.1, 0.2])
     assert harms(profile([0.9, 1.9], [0.1, 0.19]), physics) == []
     assert harms(profile([0.9, 2.1], [0.1, 0.1]), physics) == ['position at step 2']
-    assert harms(profile([0.9, 1.0], [0.11, 0.1]), physics) == ['u at step 1']
+    assert harms(profile([0.9, 1.0], [0.11, 0.1]), physics) == ['state error at step 1']
     assert harms(profile([None, 1.0], [0.1, 0.1]), physics) == ['position at step 1']
+    assert harms(profile([0.9, 2.1], [0.1, 0.1]), physics, until_step=1) == []
+    # One state may be a little worse when the others gain more: reported, not judged.
+    assert harms(profile([0.9, 1.9], [0.1, 0.19], rmse_u=[0.5, 0.5]), physics) == []
+
+
+def fake_validation(errors_by_threshold):
+    """evaluate(schedule): each quarter's errors come from the threshold serving it."""
+    def evaluate(schedule):
+        starts = [start for start, _ in schedule] + [float('inf')]
+        served = [next(t for (_, t), e in zip(schedule, starts[1:], strict=True) if q < e)
+                  for q in range(2)]
+        position = [errors_by_threshold[t][0][q] for q, t in enumerate(served)]
+        normalized = [errors_by_threshold[t][1][q] for q, t in enumerate(served)]
+        return {'score': sum(normalized), 'profile': profile(position, normalized)}
+    return evaluate
 
 
 def test_the_best_admissible_threshold_is_served_and_the_physics_when_none_helps():
-    physics = {'score': 1.0, 'profile': profile([1.0, 2.0], [0.1, 0.2])}
-    rows = [{'relative_threshold': 0.0, **physics},
-            {'relative_threshold': 0.1, 'score': 0.8, 'profile': profile([0.9, 1.8], [.1, .2])},
-            # Better on the score, but worse late in the horizon: refused.
-            {'relative_threshold': 0.5, 'score': 0.6, 'profile': profile([0.5, 2.5], [.1, .2])}]
-    chosen = choose(rows, physics)
-    assert chosen['relative_threshold'] == 0.1 and chosen['score'] == 0.8
-    assert chosen['candidates'][2]['harms'] == ['position at step 2']
-    assert choose(rows[:1] + rows[2:], physics)['relative_threshold'] == 0.0
+    physics = {'score': 0.3, 'profile': profile([1.0, 2.0], [0.1, 0.2])}
+    table = {0.0: ([1.0, 2.0], [0.1, 0.2]),
+             0.1: ([0.9, 1.8], [0.09, 0.15]),
+             # Better on the score, but worse in the first quarter: refused.
+             0.5: ([1.1, 1.0], [0.11, 0.05])}
+    chosen = choose_schedule(fake_validation(table), [0.0, 0.1, 0.5], physics, dt=1.0)
+    assert chosen['relative_threshold'] == 0.1
+    assert any('position at step 1' in row['harms'] for row in chosen['candidates'])
+    worse = {0.0: table[0.0], 0.1: ([1.1, 2.2], [0.2, 0.3])}
+    none = choose_schedule(fake_validation(worse), [0.0, 0.1], physics, dt=1.0)
+    assert none['relative_threshold'] == 0.0 and 'physics alone' in none['reason']
+
+
+def test_a_correction_that_hurts_only_at_first_is_served_after_the_first_quarter():
+    physics = {'score': 0.3, 'profile': profile([1.0, 2.0], [0.1, 0.2])}
+    table = {0.0: ([1.0, 2.0], [0.1, 0.2]), 0.2: ([1.2, 1.0], [0.12, 0.1])}
+    chosen = choose_schedule(fake_validation(table), [0.0, 0.2], physics, dt=0.5)
+    assert chosen['relative_threshold'] == [[0.0, 0.0], [0.5, 0.2]]
+    assert 'until 0.5 s' in chosen['reason']
 
 
 def test_step_errors_of_parts_add_up_to_the_whole_and_profile_the_quarters():
@@ -118,6 +144,7 @@ def test_a_correction_that_hurts_on_validation_is_served_at_threshold_0(linear):
     chosen = select_threshold(model, task, cfg['training'], best_epoch=3)
     assert chosen['relative_threshold'] == 0.0 and model.relative_threshold == 0.0
     assert all(row['harms'] for row in chosen['candidates'] if row['relative_threshold'])
+    assert chosen['physics']['profile']['normalized']
 
 
 def test_a_correction_that_helps_on_validation_is_served_bounded(linear):
@@ -133,3 +160,39 @@ def test_a_correction_that_helps_on_validation_is_served_bounded(linear):
     assert chosen['relative_threshold'] > 0, chosen['reason']
     assert chosen['score'] < 0.5 * chosen['physics']['score']
     assert model.relative_threshold == chosen['relative_threshold']
+
+
+def test_a_difference_the_validation_runs_cannot_resolve_is_not_harm():
+    rng = np.random.default_rng(0)
+    physics_errors = rng.uniform(0.5, 1.5, (40, 2))
+    noise = physics_errors + rng.normal(0.0, 0.3, (40, 2))
+    noisy = noise - noise.mean(axis=0) + physics_errors.mean(axis=0) + 0.01  # a bit worse
+    clearly = physics_errors + 0.2                                           # always worse
+    base = profile(physics_errors.mean(axis=0), physics_errors.mean(axis=0))
+    runs = np.arange(40) % 8          # five forecasts from each of eight validation runs
+    per = {'position': physics_errors, 'state': physics_errors, 'run': runs}
+
+    def judged(errors, confidence):
+        return harms(profile(errors.mean(axis=0), errors.mean(axis=0)), base, None,
+                     ({'position': errors, 'state': errors, 'run': runs}, per), confidence)
+
+    assert judged(noisy, 0.95) == []
+    assert judged(noisy, None) != []           # any worse mean counts without a test
+    assert judged(clearly, 0.95) == ['position at step 1', 'position at step 2',
+                                     'state error at step 1', 'state error at step 2']
+
+
+def test_one_run_against_the_others_is_judged_by_runs_not_by_forecasts():
+    # One long validation run where the correction hurts, five shorter ones where it
+    # helps: 60 forecasts against 5 x 8, but six runs, and the runs decide.
+    runs = np.concatenate([np.zeros(60, int), np.repeat(np.arange(1, 6), 8)])
+    physics_errors = np.ones((100, 1))
+    hybrid = np.concatenate([np.full(60, 1.5), np.full(40, 0.7)])[:, None]
+    base = profile([1.0], [1.0], steps=(1,))
+    worse = profile([hybrid.mean()], [hybrid.mean()], steps=(1,))
+    pairs = ({'position': hybrid, 'state': hybrid, 'run': runs},
+             {'position': physics_errors, 'state': physics_errors, 'run': runs})
+    assert hybrid.mean() > 1.0
+    assert harms(worse, base, None, pairs, 0.95) == []
+    assert harms(worse, base, None, pairs, None) == ['position at step 1',
+                                                    'state error at step 1']

@@ -1,14 +1,15 @@
 """hybrid_predictor.plans and .health: plan checks, the forecast track, diagnostics."""
 
 import math
+import re
 
 import numpy as np
 import pytest
 
 from hybrid_predictor import health
 from hybrid_predictor.plans import (
-    ActuatorLimits,
     PlanError,
+    PlanLimits,
     bound_hit_fraction,
     check_plan,
     hold_latest,
@@ -16,7 +17,10 @@ from hybrid_predictor.plans import (
     track,
 )
 
-LIMITS = ActuatorLimits(shaft_max=100.0, rudder_max=0.6)
+LIMITS = PlanLimits('test_boat', {'shaft_speed': (0.0, 100.0, 'rad/s'),
+                                  'rudder_port': (-0.6, 0.6, 'rad'),
+                                  'rudder_stbd': (-0.6, 0.6, 'rad'),
+                                  'wind_speed': (0.0, 40.0, 'm/s')})
 LATEST = np.array([90.0, 0.01, 0.02, 4.0, 0.0, 1.0])
 H = 5
 
@@ -46,8 +50,10 @@ def test_a_planned_wind_is_used_as_cos_sin_of_its_direction():
     ({'shaft_speed': np.full(H - 1, 80.0)}, 'shaft_speed has 4 entries, need 5'),
     ({'rudder_port': np.array([0, 0, np.nan, 0, 0])}, 'rudder_port[2] is nan'),
     ({'rudder_stbd': np.full(H, np.inf)}, 'rudder_stbd[0] is inf'),
-    ({'shaft_speed': np.full(H, 150.0)}, 'shaft_speed outside'),
-    ({'rudder_port': np.full(H, -0.7)}, 'rudder_port outside'),
+    ({'shaft_speed': np.full(H, 150.0)}, 'shaft_speed[0] = 150 outside [0, 100] rad/s'),
+    ({'rudder_port': np.full(H, -0.7)}, 'rudder_port[0] = -0.7 outside [-0.6, 0.6] rad'),
+    ({'wind_speed': np.full(H, 1e6), 'wind_direction': np.zeros(H)},
+     'wind_speed[0] = 1e+06 outside [0, 40] m/s'),
     ({'wind_speed': np.full(3, 1.0)}, 'wind_speed has 3 entries'),
     ({'wind_speed': np.full(H, 5.0)}, 'wind_direction 0; give both'),
     ({'wind_direction': np.zeros(H)}, 'wind_speed has 0 entries and wind_direction 5'),
@@ -58,8 +64,29 @@ def test_a_planned_wind_is_used_as_cos_sin_of_its_direction():
     ({'wind_speed': np.full(H, -1.0), 'wind_direction': np.zeros(H)}, 'wind_speed must be'),
 ])
 def test_malformed_plans_are_refused_with_the_reason(override, message):
-    with pytest.raises(PlanError, match=message.replace('[', r'\[').replace(']', r'\]')):
+    with pytest.raises(PlanError, match=re.escape(message)):
         plan_controls(good_plan(**override), LATEST, H, LIMITS, index=3)
+
+
+def test_plan_limits_are_the_vessels_declared_ranges_and_wind_needs_one():
+    from dataclasses import replace
+
+    from vessel_description import load_vessel
+
+    boat = load_vessel('patrol_boat')
+    limits = PlanLimits.of(boat)
+    assert limits.ranges['shaft_speed'][:2] == (boat.actuator('n').low, boat.actuator('n').high)
+    assert limits.ranges['rudder_stbd'][:2] == (boat.actuator('delta_stbd').low,
+                                                boat.actuator('delta_stbd').high)
+    assert limits.ranges['wind_speed'][:2] == boat.limits['wind_speed']
+    # A vessel with wind but no declared wind range: plans may only leave the wind out.
+    no_wind_range = PlanLimits.of(replace(boat, limits={k: v for k, v in boat.limits.items()
+                                                        if k != 'wind_speed'}))
+    plan = good_plan(wind_speed=np.full(H, 5.0), wind_direction=np.zeros(H))
+    with pytest.raises(PlanError, match='declares no range for wind_speed'):
+        check_plan(plan, H, no_wind_range)
+    check_plan(good_plan(), H, no_wind_range)
+    assert PlanLimits.of(load_vessel('snuboat')) is None   # not the plan's controls
 
 
 def test_a_topic_plan_may_be_longer_than_the_horizon_but_not_ragged():

@@ -20,6 +20,7 @@ from hybrid_models.training import load_config, train
 from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.distributed import DeviceError, Group, Shard, resolve_device
 from hybrid_models.training.train import _train, dataset_vessel
+from vessel_datasets.format import read_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
@@ -136,10 +137,11 @@ def test_a_killed_rank_resumes_and_ends_as_an_unbroken_job(toy, tmp_path):
 
 def test_only_rank_zero_writes(toy, tmp_path):
     cfg = load_config(SMOKE, [f'dataset={toy}'] + SHORT)
-    spec = dataset_vessel(cfg)
+    ds = read_dataset(toy)
+    spec = dataset_vessel(cfg, ds)
     cfg = fill_from_vessel(cfg, spec)
     out = tmp_path / 'rank1'
-    summary = _train(cfg, spec, out, False, Group(rank=1))
+    summary = _train(cfg, spec, ds, out, False, Group(rank=1))
     assert summary['rank'] == 1 and summary['epochs'] == 4
     assert not out.exists()
 

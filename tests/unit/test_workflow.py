@@ -58,7 +58,8 @@ def test_each_fold_is_diagnosed_without_its_test_runs_and_its_physics_retrained(
     assert labels == [NOMINAL, AUGMENTED, LSTM, 'physics (nominal)',
                       'physics (augmented_physics)']
     for fold in folds:
-        hybrid = out / 'runs' / AUGMENTED / f"fold{fold['index']}" / 'seed0' / 'config.yaml'
+        hybrid = out / 'runs' / AUGMENTED.replace(' ', '_') / f"fold{fold['index']}" / \
+            'seed0' / 'config.yaml'
         assert 'augmented_physics.yaml' in hybrid.read_text()
     report = (out / 'report.md').read_text()
     assert 'a stand-in finding' in report and 'Do no harm' in report

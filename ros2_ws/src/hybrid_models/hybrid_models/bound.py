@@ -18,6 +18,12 @@ physics alone (b = 0, the correction is zero); inf leaves it unbounded. None mea
 threshold is given: a training config or a checkpoint without one is unbounded, and a
 forecaster given none serves its checkpoint's own. The bound itself is written against
 the Array API, so training (torch) and serving (jax) run this one code.
+
+A threshold may also change along the forecast: a schedule [[0, T1], [s2, T2], ...]
+serves T1 for the steps that end at or before s2 seconds, T2 from there to the next
+start, and the last one to the end of any horizon (``step_bounds``). The do-no-harm
+selection (``hybrid_models.selection``) writes one when, say, the physics alone is the
+better forecast over the first seconds and the correction helps after them.
 """
 
 from __future__ import annotations
@@ -48,6 +54,42 @@ def half_width(relative_threshold: float | None, out_range: np.ndarray) -> np.nd
         raise ValueError('the output range is not set (a model trained before bounds were '
                          'computed); a threshold needs it')
     return relative_threshold * np.asarray(out_range, dtype=np.float64) / 2.0
+
+
+def schedule_of(threshold) -> list[tuple[float, float | None]]:
+    """
+    Return a served threshold as a schedule [(start_s, T), ...], checked.
+
+    A number or None is one threshold from 0 s on; a schedule must start at 0 s and
+    have increasing starts.
+    """
+    if threshold is None or isinstance(threshold, (int, float)):
+        return [(0.0, None if threshold is None else float(threshold))]
+    schedule = [(float(start), None if t is None else float(t)) for start, t in threshold]
+    starts = [start for start, _ in schedule]
+    if not schedule or starts[0] != 0.0 or any(np.diff(starts) <= 0):
+        raise ValueError(f'a threshold schedule is [[0, T1], [start_s, T2], ...] with '
+                         f'increasing starts, got {threshold}')
+    return schedule
+
+
+def is_constant(threshold) -> bool:
+    """Tell whether a served threshold is one value for the whole forecast."""
+    return len(schedule_of(threshold)) == 1
+
+
+def step_bounds(threshold, out_range: np.ndarray, dt: float, horizon: int) -> np.ndarray:
+    """
+    Return the half-widths (horizon, n_state) of forecast steps 1..horizon.
+
+    Step k ends k * dt seconds after the forecast starts; it takes the schedule's entry
+    with the last start before that time.
+    """
+    schedule = schedule_of(threshold)
+    ends = dt * (np.arange(1, horizon + 1) - 1e-9)   # a step ending at a start is before it
+    which = np.searchsorted([start for start, _ in schedule], ends, side='left') - 1
+    rows = np.stack([half_width(t, out_range) for _, t in schedule])
+    return rows[np.maximum(which, 0)]
 
 
 def apply_bound(x, bound, mode: str = 'tanh'):

@@ -100,9 +100,9 @@ def checked_vessel(dataset: Dataset | str | Path, checkpoints: list[tuple[object
     return vessel
 
 
-def dataset_hash(path: str | Path) -> str:
+def dataset_hash(dataset: Dataset | str | Path) -> str:
     """SHA-256 over the manifest and every run file (identifies the training data)."""
-    ds = read_dataset(path)
+    ds = dataset if isinstance(dataset, Dataset) else read_dataset(dataset)
     digest = hashlib.sha256((ds.root / 'manifest.json').read_bytes())
     for entry in sorted(ds.manifest['runs'], key=lambda r: r['id']):
         digest.update((ds.root / entry['file']).read_bytes())

@@ -32,7 +32,7 @@ import sys
 
 import numpy as np
 
-from hybrid_models.bound import half_width
+from hybrid_models.bound import half_width, is_constant, schedule_of, step_bounds
 from hybrid_models.checkpoint_format import CheckpointError, read_model_arrays, vessel_of
 from hybrid_models.hybrid_step import hybrid_step, lstm_layers, lstm_stack, step_weights
 from hybrid_models.physical import PhysicalModel, build_physical
@@ -52,7 +52,8 @@ DEVICE_COUNT_FLAG = '--xla_force_host_platform_device_count'
 MIN_SHARD = 8   # plans per device below which splitting a batch costs more than it gains
 
 
-def _jax():
+def jax_module():
+    """Return jax, first asking XLA for one host device per core (module docstring)."""
     if 'jax' not in sys.modules and DEVICE_COUNT_FLAG not in os.environ.get('XLA_FLAGS', ''):
         cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else (
             os.cpu_count() or 1)
@@ -63,18 +64,25 @@ def _jax():
     return jax
 
 
-def _compiled_repeat(n, body, x):
+def compiled_repeat(n, body, x):
     """Apply ``body`` n times as one compiled loop (the physics' RK4 sub-steps)."""
-    return _jax().lax.fori_loop(0, n, lambda _i, state: body(state), x)
+    return jax_module().lax.fori_loop(0, n, lambda _i, state: body(state), x)
 
 
 def served_bound(state: dict, model_config: dict,
-                 relative_threshold: float | None) -> tuple[float | None, np.ndarray]:
-    """Return (threshold, half-widths b) to serve: None keeps the checkpoint's own."""
-    if relative_threshold is None:
-        return (model_config.get('relative_threshold'),
-                np.asarray(state['bound'], np.float64).copy())
+                 relative_threshold: float | None) -> tuple:
+    """
+    Return (threshold, half-widths b) to serve: None keeps the checkpoint's own.
+
+    The checkpoint's own may be a schedule (``hybrid_models.bound``); b is then its last
+    entry's, and ``Forecaster.step_bounds`` gives every step's.
+    """
     out_range = np.asarray(state['output_range'], np.float64)
+    if relative_threshold is None:
+        threshold = model_config.get('relative_threshold')
+        if is_constant(threshold):
+            return threshold, np.asarray(state['bound'], np.float64).copy()
+        return threshold, half_width(schedule_of(threshold)[-1][1], out_range)
     return float(relative_threshold), half_width(relative_threshold, out_range)
 
 
@@ -92,7 +100,7 @@ class Forecaster:
     def __init__(self, spec: VehicleSpec, model_config: dict, physical: PhysicalModel,
                  state: dict, relative_threshold: float | None = None, dtype=np.float32,
                  model_id: str = '', config: dict | None = None):
-        jax = _jax()
+        jax = jax_module()
         if dtype == np.float64:
             jax.config.update('jax_enable_x64', True)
         self.spec, self.physical, self.dtype = spec, physical, dtype
@@ -100,6 +108,7 @@ class Forecaster:
         self.bound_mode = model_config.get('bound_mode', 'tanh')
         self.relative_threshold, self.bound = served_bound(state, model_config,
                                                            relative_threshold)
+        self._output_range = np.asarray(state['output_range'], np.float64)
         layers = int(model_config['layers'])
 
         def cast(a):
@@ -155,9 +164,15 @@ class Forecaster:
         run_config = self.config.get('training', {})   # the training run's whole config
         return int(run_config['training']['window'])
 
+    def step_bounds(self, horizon: int) -> np.ndarray:
+        """Return the served half-widths of forecast steps 1..horizon (horizon, n_state)."""
+        if is_constant(self.relative_threshold):
+            return np.broadcast_to(self.bound, (horizon, len(self.bound))).copy()
+        return step_bounds(self.relative_threshold, self._output_range, self.spec.dt, horizon)
+
     # ------------------------------------------------------------------ the program
     def _forecast(self, p, z_window, c_window, c_future):
-        jax = _jax()
+        jax = jax_module()
         jnp = jax.numpy
         batch = c_future.shape[0]
         hidden = p['init'][0][1].shape[0]
@@ -174,16 +189,18 @@ class Forecaster:
         z0 = jnp.broadcast_to(z_window[-1], (batch, z_window.shape[-1]))
 
         def physical(z, c):
-            return self.physical.step(z, c, self._physical_arrays, _compiled_repeat)
+            return self.physical.step(z, c, self._physical_arrays, compiled_repeat)
 
-        def step(carry, c_t):
-            z, recurrent = carry
+        def step(carry, inputs):
+            (z, recurrent), (c_t, bound) = carry, inputs
             z_next, z_phy, _, recurrent = hybrid_step(p, physical, z, c_t, recurrent,
-                                                      self.bound_mode)
+                                                      self.bound_mode, bound=bound)
             return (z_next, recurrent), (z_next, z_phy)
 
+        # The horizon is a static shape: each step's bound is a constant of the program.
+        bounds = self.step_bounds(c_future.shape[1]).astype(self.dtype)
         _, (hybrid, physics) = jax.lax.scan(step, (z0, recurrent),
-                                            jnp.swapaxes(c_future, 0, 1))
+                                            (jnp.swapaxes(c_future, 0, 1), bounds))
         return jnp.swapaxes(hybrid, 0, 1), jnp.swapaxes(physics, 0, 1)
 
     # ------------------------------------------------------------------ public API
@@ -204,7 +221,7 @@ class Forecaster:
             c_future = np.concatenate([c_future, pad], axis=0)
         shards = self._shards(padded)
         size = padded // shards
-        jax = _jax()
+        jax = jax_module()
         # Dispatch is asynchronous: every shard is running before the first is read.
         running = [self._compiled(self._device_params[k], *jax.device_put(
             (z_window, c_window, c_future[k * size:(k + 1) * size]), self.devices[k]))

@@ -64,7 +64,7 @@ def evaluate_model(label: str, model: nn.Module, windows: Windows, spec: Vehicle
                    state_std: np.ndarray) -> Evaluated:
     """Forecast every window and compute the metrics."""
     pred = predict(model, windows)
-    metrics = forecast_metrics(pred, windows.z_target, spec)
+    metrics = forecast_metrics(pred, windows.z_target, spec, state_std=state_std)
     metrics['rmse_normalized_sum'] = normalized_rmse_sum(pred, windows.z_target, state_std)
     return Evaluated(label, pred, metrics)
 

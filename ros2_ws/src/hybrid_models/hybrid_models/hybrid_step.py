@@ -70,26 +70,27 @@ def _sigmoid(xp, x):
 
 
 def hybrid_step(weights: Mapping, physical: Callable, z, c, recurrent: tuple,
-                bound_mode: str | None, between: Callable | None = None):
+                bound_mode: str | None, between: Callable | None = None, bound=None):
     """
     One sample period: return (z_next, z_phy, residual, recurrent state).
 
     z (B, n_state) and c (B, n_control) in the vessel's units; ``physical(z, c)`` is the
     physical model's one-period map; ``bound_mode`` None leaves the residual unbounded
-    (training without the constraint), otherwise ``weights['bound']`` limits it.
+    (training without the constraint), otherwise ``bound`` (this step's half-widths;
+    default ``weights['bound']``) limits it.
     """
     xp = namespace(z, c)
     z_phy = physical(z, c)
     x = xp.concat([(c - weights['control_mean']) / weights['control_std'],
                    (z_phy - weights['state_mean']) / weights['state_std']], axis=-1)
     y, recurrent = lstm_stack(x, recurrent, weights['lstm'], between)
-    residual = bounded_residual(y, weights, bound_mode)
+    residual = bounded_residual(y, weights, bound_mode, bound)
     return z_phy + residual, z_phy, residual, recurrent
 
 
-def bounded_residual(y, weights: Mapping, bound_mode: str | None):
+def bounded_residual(y, weights: Mapping, bound_mode: str | None, bound=None):
     """Return the LSTM output's residual in state units (..., n_state), bounded."""
     residual = (y @ weights['head_w'] + weights['head_b']) * weights['residual_std']
     if bound_mode is None:
         return residual
-    return apply_bound(residual, weights['bound'], bound_mode)
+    return apply_bound(residual, weights['bound'] if bound is None else bound, bound_mode)

@@ -70,11 +70,12 @@ def _finite(x: float) -> float | None:
 
 
 def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
-                     minute: int | None = None) -> dict:
+                     minute: int | None = None, state_std: np.ndarray | None = None) -> dict:
     """
     Every number of one model's forecasts (B, H, n_state) against the truth.
 
-    Non-finite forecasts (a diverged model) give ``diverged: true`` and None values.
+    Non-finite forecasts (a diverged model) give ``diverged: true`` and None values;
+    ``state_std`` adds the state error (sum of RMSE / std) to the horizon profile.
     """
     pred = np.asarray(pred, dtype=np.float64)
     true = np.asarray(true, dtype=np.float64)
@@ -101,7 +102,7 @@ def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
             'per_minute_mean': None if per_minute is None else [
                 _finite(x) for x in per_minute.mean(axis=0)],
         },
-        'profile': StepErrors.of(pred, true, spec).profile(spec),
+        'profile': StepErrors.of(pred, true, spec).profile(spec, state_std=state_std),
         'n_forecasts': n,
         'horizon': int(pred.shape[1]),
     }
@@ -155,22 +156,27 @@ class StepErrors:
         return normalized_rmse_sum_of(self.sse.sum(axis=0), self.count * len(self.sse),
                                       state_std)
 
-    def profile(self, spec: VehicleSpec, steps: list[int] | None = None) -> dict:
+    def profile(self, spec: VehicleSpec, steps: list[int] | None = None,
+                state_std: np.ndarray | None = None) -> dict:
         """
         Return the errors at ``steps`` (default ``reported_steps``).
 
-        The mean position error (m) and each state's RMSE over the forecasts; None
-        where a forecast diverged.
+        The mean position error (m) and each state's RMSE over the forecasts, and with
+        ``state_std`` their sum over states of RMSE / std (``normalized``, the selection
+        score at one step); None where a forecast diverged.
         """
         steps = steps or reported_steps(len(self.sse))
         at = np.asarray(steps) - 1
         with np.errstate(invalid='ignore', over='ignore'):
             rmse = np.sqrt(self.sse[at] / self.count)
             position = self.position[at] / self.count
-        return {'steps': list(steps), 'seconds': [k * spec.dt for k in steps],
-                'position_m': [_finite(x) for x in position],
-                'rmse': {s: [_finite(x) for x in rmse[:, i]]
-                         for i, s in enumerate(spec.state_names)}}
+        out = {'steps': list(steps), 'seconds': [k * spec.dt for k in steps],
+               'position_m': [_finite(x) for x in position],
+               'rmse': {s: [_finite(x) for x in rmse[:, i]]
+                        for i, s in enumerate(spec.state_names)}}
+        if state_std is not None:
+            out['normalized'] = [_finite(x) for x in (rmse / state_std).sum(axis=1)]
+        return out
 
 
 def squared_error_sums(pred: np.ndarray, true: np.ndarray) -> tuple[np.ndarray, int]:

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_models.bound import half_width
+from hybrid_models.bound import half_width, is_constant, schedule_of, step_bounds
 from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weights
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import PhysicalModel
@@ -89,9 +89,23 @@ class PhysicalModule(nn.Module):
             owner.register_buffer(leaf, tensor.float() if tensor.is_floating_point()
                                   else tensor)
         self.spec, self.kind = model.spec, model.kind
+        self.compiled = None
+
+    def compile(self) -> None:
+        """
+        Run the step as one compiled program with its Jacobian (``compiled_physics``).
+
+        For training on a CPU once the model is fitted: its values are constants of the
+        program, so ``fit`` or a new state dict afterwards needs another ``compile``.
+        """
+        from hybrid_models.compiled_physics import compile_step
+        self.compiled = compile_step(self.numpy_model())
 
     def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
         """Predict the next state with the buffers' values."""
+        if self.compiled is not None:
+            from hybrid_models.compiled_physics import CompiledStep
+            return CompiledStep.apply(z, c, self.compiled)
         return self.model.step(z, c, dict(self.named_buffers()))
 
     def fit(self, z: np.ndarray, c: np.ndarray, z_next: np.ndarray) -> PhysicalModule:
@@ -186,16 +200,30 @@ class HybridModel(_Normalized):
         # The physical model's 95 % output range R_i and the bound b_i = T R_i / 2.
         self.register_buffer('output_range', torch.full((spec.n_state,), math.nan))
         self.register_buffer('bound', torch.full((spec.n_state,), math.inf))
-        self.relative_threshold: float | None = None
+        self.relative_threshold = None   # T, None or a schedule (hybrid_models.bound)
 
-    def set_threshold(self, relative_threshold: float | None) -> None:
-        """Constrain the residual to T R / 2 per state (None: unconstrained; 0: physics)."""
-        b = half_width(relative_threshold, self.output_range.double().numpy())
+    def set_threshold(self, relative_threshold) -> None:
+        """
+        Constrain the residual to T R / 2 per state (None: unconstrained; 0: physics).
+
+        A schedule [[0, T1], [start_s, T2], ...] changes T along the forecast
+        (``bound.step_bounds``); the ``bound`` buffer then holds its last entry's.
+        """
+        last = schedule_of(relative_threshold)[-1][1]
+        b = half_width(last, self.output_range.double().numpy())
         self.bound.copy_(torch.as_tensor(b, dtype=self.bound.dtype))
         self.relative_threshold = relative_threshold
 
+    def step_bounds(self, horizon: int) -> torch.Tensor | None:
+        """Half-widths (horizon, n_state) of the served threshold; None when constant."""
+        if is_constant(self.relative_threshold):
+            return None
+        b = step_bounds(self.relative_threshold, self.output_range.double().numpy(),
+                        self.spec.dt, horizon)
+        return torch.as_tensor(b, dtype=self.bound.dtype, device=self.bound.device)
+
     @contextmanager
-    def served_at(self, relative_threshold: float | None):
+    def served_at(self, relative_threshold):
         """Serve at another threshold inside the ``with`` block; the own one after it."""
         own = self.relative_threshold
         self.set_threshold(relative_threshold)
@@ -214,11 +242,11 @@ class HybridModel(_Normalized):
         return tuple(h.unbind(0)), tuple(c.unbind(0))
 
     def step(self, z: torch.Tensor, c: torch.Tensor, recurrent: tuple,
-             weights: dict | None = None):
+             weights: dict | None = None, bound: torch.Tensor | None = None):
         """One sample period (``hybrid_models.hybrid_step``): (z_next, z_phy, res, state)."""
         weights = weights if weights is not None else self.step_weights()
         return hybrid_step(weights, self.physical, z, c, recurrent, self._bound_mode(),
-                           self._between_layers())
+                           self._between_layers(), bound)
 
     def step_weights(self) -> dict:
         """Return the step's weights as views of the parameters (gradients flow)."""
@@ -236,10 +264,12 @@ class HybridModel(_Normalized):
         """Multistep prediction with feedback; ``return_parts`` adds (z_phy, residual)."""
         recurrent = self.start(z_window, c_window)
         weights = self.step_weights()
+        bounds = self.step_bounds(c_future.shape[1])
         z = z_window[:, -1]
         zs, phys, ress = [], [], []
         for k in range(c_future.shape[1]):
-            z, z_phy, res, recurrent = self.step(z, c_future[:, k], recurrent, weights)
+            z, z_phy, res, recurrent = self.step(z, c_future[:, k], recurrent, weights,
+                                                 None if bounds is None else bounds[k])
             zs.append(z)
             phys.append(z_phy)
             ress.append(res)

@@ -13,9 +13,11 @@ heading unwrapped), ``vessel_datasets.resample.sample`` (states linear, actuator
 wind held) and ``to_columns`` (frames, units, the vessel's vector order) -- so the
 model sees what it was trained on. A window is only handed out when every grid point
 is covered without gaps longer than ``max_gap`` and the newest state is at most
-``max_age`` old; otherwise the result says why. A channel whose map entry has a
-``delay_s`` is moved back by it, as the converter does, so the window ends at the newest
-time every channel covers: the newest state sample less the longest delay.
+``max_age`` old on the line its stamps are on (``time_line``: a source whose stamps
+trail the node's clock by a new, steady lag, as after a pause, is re-anchored on);
+otherwise the result says why. A channel whose map entry has a ``delay_s`` is moved back
+by it, as the converter does, so the window ends at the newest time every channel
+covers: the newest state sample less the longest delay.
 
 Times are in seconds on the clock of the message stamps.
 """
@@ -32,6 +34,8 @@ from vessel_datasets.extract import TopicSamples
 from vessel_datasets.quantities import channel_delays, channel_methods, derive, to_columns
 from vessel_datasets.resample import sample
 from vessel_datasets.topic_map import TopicMap
+
+from .time_line import ReAnchor, TimeLines
 
 POSE = ('x', 'y', 'psi')
 STATE_ENTRY = 'surge'  # its topic's newest sample ends the window
@@ -120,6 +124,11 @@ class Stream:
         self._times.clear()
         self._values.clear()
 
+    def take_samples(self, other: Stream) -> None:
+        """Hold ``other``'s samples instead of this stream's (counts are kept); empty it."""
+        self._times, other._times = other._times, deque()
+        self._values, other._values = other._values, deque()
+
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Return the buffered times (s) and values (n, channels)."""
         times = np.fromiter(self._times, float, len(self._times))
@@ -182,17 +191,23 @@ class InputWindow:
     """
     Collects one stream per topic of a vessel's topic map; builds windows on demand.
 
-    Time is judged on the caller's clock ``now`` (the node's, following use_sim_time):
-    a sample more than ``max_future`` ahead of it is rejected (``future``) instead of
-    becoming the stream's newest; a sample more than ``restart_span`` older than its
-    stream's newest that is itself fresh (at most ``max_age`` old) means the source
-    restarted: every stream is cleared and the sample starts a new window, where an
-    out-of-order sample would otherwise shut the restarted source out.
+    Time is judged on the caller's clock ``now`` (the node's, following use_sim_time),
+    shifted by the offset of the line the source's stamps are on (``time_line``; 0
+    until a source is re-anchored): a sample more than ``max_future`` ahead of it is
+    rejected (``future``) instead of becoming the stream's newest; a sample more than
+    ``restart_span`` older than its stream's newest that is itself fresh (at most
+    ``max_age`` off the line) means the source restarted: every stream is cleared and the
+    sample starts a new window, where an out-of-order sample would otherwise shut the
+    restarted source out. Samples on a candidate line are kept aside in shadow streams,
+    so a source re-anchored after a jump of its stamps has its window back as soon as
+    the candidate line has lasted one window. ``labels`` names the streams in messages
+    (the topics as the node resolved them; default: the map's names).
     """
 
     def __init__(self, topic_map: TopicMap, window: int, dt: float, max_gap: float,
                  max_age: float, max_future: float = math.inf,
-                 restart_span: float = math.inf, plausibility=None):
+                 restart_span: float = math.inf, plausibility=None,
+                 re_anchor_after: float = math.inf, labels: dict[str, str] | None = None):
         if window < 2 or dt <= 0:
             raise ValueError(f'need window >= 2 and dt > 0; got {window}, {dt}')
         self.topic_map, self.vessel = topic_map, topic_map.vessel
@@ -204,35 +219,43 @@ class InputWindow:
         leaves: dict[str, list[str]] = {}
         for leaf in topic_map.leaves():
             leaves.setdefault(leaf.topic, []).append(leaf.channel)
-        self.streams = {
-            topic: Stream(topic, tuple(channels),
-                          all(self.methods[c] == 'hold' for c in channels), 0.0)
-            for topic, channels in leaves.items()}
+        self.labels = {topic: (labels or {}).get(topic, topic) for topic in leaves}
+
+        def streams() -> dict[str, Stream]:
+            return {topic: Stream(self.labels[topic], tuple(channels),
+                                  all(self.methods[c] == 'hold' for c in channels), 0.0)
+                    for topic, channels in leaves.items()}
+        self.streams = streams()
+        self.shadow = streams()   # samples of a candidate time line
+        self.lines = TimeLines(max_age, re_anchor_after)
         self.configure(max_gap=max_gap, max_age=max_age, max_future=max_future,
-                       restart_span=restart_span)
+                       restart_span=restart_span, re_anchor_after=re_anchor_after)
         self.state_topic = next(e.topic for e in topic_map.entries if e.name == STATE_ENTRY)
         self.lag = max(self.delays.values(), default=0.0)
         self.stream_delays = {topic: sorted({self.delays.get(c, 0.0) for c in s.channels})
                               for topic, s in self.streams.items()}
 
     def configure(self, max_gap: float, max_age: float, max_future: float,
-                  restart_span: float) -> None:
+                  restart_span: float, re_anchor_after: float | None = None) -> None:
         """Set the time limits (s); the node calls it again when a parameter changes."""
         if min(max_gap, max_age, max_future, restart_span) <= 0:
             raise ValueError(f'need positive max_gap, max_age, max_future, restart_span; '
                              f'got {max_gap}, {max_age}, {max_future}, {restart_span}')
         self.max_gap, self.max_age = max_gap, max_age
         self.max_future, self.restart_span = max_future, restart_span
-        for stream in self.streams.values():
+        self.lines.configure(max_age, self.lines.span if re_anchor_after is None
+                             else re_anchor_after)
+        for stream in (*self.streams.values(), *self.shadow.values()):
             stream.keep_s = (self.window + 1) * self.dt + max_gap
 
     def push(self, stream: str, t: float, values: dict[str, float], now: float | None = None,
-             frame_id: str | None = None) -> str | None:
+             frame_id: str | None = None, wall: float | None = None) -> str | None:
         """
         Offer a sample of channel values to a topic's stream; None if accepted.
 
         ``now`` (s, the node's clock) enables the time checks of the class docstring;
-        ``frame_id`` is the message's header frame (None: a message without header).
+        ``frame_id`` is the message's header frame (None: a message without header);
+        ``wall`` the wall clock (s, steady; None: ``now`` is the wall clock).
         """
         target = self.streams[stream]
         reason = target.content_reason(t, values)
@@ -243,21 +266,60 @@ class InputWindow:
             if absurd:
                 return target.reject(*absurd)
         if now is not None:
-            if t > now + self.max_future:
-                return target.reject('future', f'{stream}: stamp t={t:.3f} is '
-                                     f'{t - now:.1f} s ahead of the clock (max '
+            if self._follow_lines(stream, t, values, now, wall):
+                return None   # the sample's line took over, with the sample
+            ahead = t - (now - self.lines.offset)
+            if ahead > self.max_future:
+                return target.reject('future', f'{target.name}: stamp t={t:.3f} is '
+                                     f'{ahead:.1f} s ahead of the clock (max '
                                      f'{self.max_future:g} s)')
             newest = target.latest_time
             if newest is not None and newest - t > self.restart_span and \
-                    now - t <= self.max_age:
-                self.clear()
+                    self.lines.on_line(t, now):
+                self.clear(keep_line=True)
                 self.restarts += 1
         return target.push(t, values)
 
-    def clear(self) -> None:
-        """Forget all samples, e.g. after the clock jumped back."""
-        for stream in self.streams.values():
+    def _follow_lines(self, stream: str, t: float, values: dict[str, float], now: float,
+                      wall: float | None) -> bool:
+        """Track the time lines with a valid sample; True if its line just took over."""
+        lines = self.lines
+        candidate = lines.candidate
+        take_over = stream == self.state_topic and lines.state(t, now, wall)
+        if lines.candidate is not candidate:      # a new candidate line starts here
+            for shadow in self.shadow.values():
+                shadow.clear()
+        # States that continued in order were kept; after a jump the window is rebuilt
+        # from the candidate's samples.
+        rebuilt = self.streams[self.state_topic].latest_time != \
+            self.shadow[self.state_topic].latest_time
+        if lines.fits_candidate(t, now):
+            self.shadow[stream].push(t, values)   # its own order checks; counts unused
+        if not take_over:
+            return False
+        if rebuilt:
+            for topic, main in self.streams.items():
+                main.take_samples(self.shadow[topic])
+        for shadow in self.shadow.values():
+            shadow.clear()
+        lines.take_over(now)
+        if rebuilt:
+            self.streams[stream].counts.accepted += 1
+        else:
+            self.streams[stream].push(t, values)
+        return True
+
+    @property
+    def re_anchors(self) -> list[ReAnchor]:
+        """Every change of the time line the window followed."""
+        return self.lines.re_anchors
+
+    def clear(self, keep_line: bool = False) -> None:
+        """Forget all samples (and the time line unless ``keep_line``): a /clock reset."""
+        for stream in (*self.streams.values(), *self.shadow.values()):
             stream.clear()
+        if not keep_line:
+            self.lines.reset()
 
     def rejected_counts(self) -> dict[str, int]:
         """Return the rejected samples of all streams, per reason."""
@@ -271,7 +333,7 @@ class InputWindow:
             return Window(False, 'incomplete', f'no {self.state_topic} received', 0.0, None,
                           None)
         t_end -= self.lag
-        age = now - t_end
+        age = now - self.lines.offset - t_end
         grid = t_end - self.dt * np.arange(self.window - 1, -1, -1, dtype=float)
         reasons, covered = [], []
         for topic, stream in self.streams.items():
@@ -285,12 +347,22 @@ class InputWindow:
             return Window(False, 'incomplete', '; '.join(reasons), fill, t_end, age)
         if age > self.max_age:
             return Window(False, 'stale', f'newest state is {age:.1f} s old (max '
-                          f'{self.max_age:g} s)', fill, t_end, age)
+                          f'{self.max_age:g} s){self._candidate_note(now)}', fill, t_end,
+                          age)
         columns = self._columns(grid)
         states = np.column_stack([columns[c] for c in self.vessel.state_names])
         controls = np.column_stack([columns[c] for c in self.vessel.control_names])
         pose = tuple(float(columns[c][-1]) for c in POSE)
         return Window(True, 'ok', '', fill, t_end, age, states, controls, pose)
+
+    def _candidate_note(self, now: float) -> str:
+        c = self.lines.candidate
+        if c is None:
+            return ''
+        side = 'behind' if c.lag > 0 else 'ahead of'
+        return (f'; {self.labels[self.state_topic]} has arrived live for '
+                f'{now - c.since:.1f} s with stamps {abs(c.lag):.1f} s {side} the clock: '
+                f'followed after {self.lines.span:g} s')
 
     def _columns(self, grid: np.ndarray) -> dict[str, np.ndarray]:
         """Return the vessel's columns on ``grid``, through the offline preprocessing."""

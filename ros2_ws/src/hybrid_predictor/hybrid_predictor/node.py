@@ -16,8 +16,14 @@ Threads (a MultiThreadedExecutor, see ``executor_for``): input and plan subscrip
 share one mutually exclusive callback group and only read, check and store samples;
 forecasting runs in a group of its own, woken by a guard condition; ``~/predict`` is
 reentrant but admits at most ``service_capacity`` requests at a time and answers
-the rest "busy" at once; /clock, parameters and /diagnostics keep the default group.
-None of them waits for another, so no input callback starves.
+the rest "busy" at once, before taking any lock the other threads hold; /clock,
+parameters and /diagnostics keep the default group. None of them waits for another,
+so no input callback starves.
+
+Health is judged on two clocks (``health``): message time and a steady wall clock, so a
+paused or dead source under use_sim_time, which stops /clock with it, is ERROR too. The
+status is one per node and vessel: its name is the node's fully qualified name, its
+hardware id the namespace and vessel; every message names the topics as resolved.
 """
 
 from __future__ import annotations
@@ -50,8 +56,10 @@ from hybrid_predictor.health import Health
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
-    ActuatorLimits,
+    PLAN_CONTROLS,
+    PLAN_FIELDS,
     PlanError,
+    PlanLimits,
     bound_hit_fraction,
     check_plan,
     hold_latest,
@@ -59,11 +67,13 @@ from hybrid_predictor.plans import (
     track,
 )
 from hybrid_predictor.plausibility import Plausibility, forecast_problem
+from hybrid_predictor.schedule import ForecastSchedule
+from hybrid_predictor.vessel_source import served_vessel
 from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
 from hybrid_predictor_interfaces.srv import Predict
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
 from vessel_datasets.topic_messages import channel_reader
-from vessel_description import VesselError, load_vessel
+from vessel_description import VesselError
 from vessel_physics import frames
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.lifecycle import run_node
@@ -76,10 +86,7 @@ FORECAST_TOPIC = 'forecast'
 PATH_TOPIC = 'forecast/path'
 PLAN_TOPIC = 'control_plan'
 DEFAULT_MODEL = ('models', 'default', 'model.safetensors')
-PLAN_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd', 'wind_speed', 'wind_direction')
-# The controls a ControlPlan message gives (its fields are the patrol boat's).
-PLAN_CONTROLS = ('n', 'delta_port', 'delta_stbd', 'wind_speed', 'wind_dir_cos',
-                 'wind_dir_sin')
+CLOCK_TOPIC = '/clock'
 # Repeated warnings (rejected inputs, plans, withheld forecasts) are said once per this
 # many seconds each. Checked here: rclpy's own throttle costs about 0.3 ms a call, which
 # a burst of rejected messages pays for every message (measured).
@@ -102,6 +109,15 @@ class Pending:
     backlogged: bool      # it waited in the queue longer than backlog_skip
 
 
+@dataclass(frozen=True)
+class Assumed:
+    """What a forecast assumed about the future controls (Forecast.controls_assumed)."""
+
+    controls: str = Forecast.CONTROLS_HELD
+    plan_id: str = ''
+    plan_stamp: object = None   # builtin_interfaces/Time of the plan, None when held
+
+
 class PredictorNode(Node):
     """Serve forecasts of the vessel's motion from the latest measurement window."""
 
@@ -114,22 +130,43 @@ class PredictorNode(Node):
         self.p = p
         path = Path(p['model_path']) if p['model_path'] else default_model_path()
         self.engine = Forecaster.from_checkpoint(path, p['relative_threshold'])
-        self.spec = self.engine.spec
-        if p['vessel']:
-            load_vessel(p['vessel']).check_compatible(self.spec, f'model {path}')
+        self.spec, vessel_note = served_vessel(p['vessel'], self.engine.spec, str(path))
+        self.get_logger().info(f'vessel {self.spec.name}: {vessel_note}')
         self.topic_map = topic_map_for(self.spec)
         self.horizon = p['horizon'] or self.spec.horizon
-        self.limits = plan_limits(self.spec)
+        self.limits = PlanLimits.of(self.spec)
+        self.sim_time = bool(self.get_parameter('use_sim_time').value)
         window = self.engine.window
         check_time_parameters(p)
+        # Topics as this node resolves them (namespace, remapping), for every message.
+        self.resolved = {topic: self.resolve_topic_name(node_topic(topic))
+                         for topic in self.topic_map.topics}
+        self.plan_topic = self.resolve_topic_name(PLAN_TOPIC)
         self.window = InputWindow(self.topic_map, window, self.spec.dt, p['max_gap'],
                                   p['max_age'], p['max_future'], p['restart_span'],
-                                  Plausibility(self.topic_map, p['quaternion_tolerance']))
+                                  Plausibility(self.topic_map, p['quaternion_tolerance']),
+                                  re_anchor_after=p['re_anchor_after'], labels=self.resolved)
+        self.bounded = bool(np.isfinite(self.engine.bound).all())
+        threshold = self.engine.relative_threshold
+        self.relative_threshold = math.nan if threshold is None else float(threshold)
+        unbounded = '' if self.bounded or p['allow_unbounded'] else (
+            f'model {self.engine.model_id} is served unbounded (relative threshold '
+            f'{threshold}): the LSTM correction has no bound; set allow_unbounded:=true if '
+            f'that is meant, or a relative_threshold')
         self.health = Health(silence_error=self._silence_error(p), max_age=p['max_age'],
-                             rejection_warn_fraction=p['rejection_warn_fraction'])
-        # Guards the window, the pending state, the plan and the counters, which the
-        # input, forecast, service and clock threads share; held only briefly.
+                             watchdog=p['watchdog_timeout'],
+                             rejection_warn_fraction=p['rejection_warn_fraction'],
+                             sim_time=self.sim_time,
+                             state_topic=self.resolved[self.window.state_topic],
+                             unbounded=unbounded)
+        self.schedule = ForecastSchedule(p['forecast_period'])
+        # Guards the window, the pending state, the plan, the schedule and the health
+        # figures, which the input, forecast, service and clock threads share; held only
+        # briefly, but a window assembly takes milliseconds under it.
         self.lock = threading.Lock()
+        # Guards the counters alone: a "busy" answer counts itself without waiting for a
+        # window assembly or a forecast in progress.
+        self.count_lock = threading.Lock()
         # One what-if batch at a time: the engine already spreads a batch over the cores.
         self.batch_lock = threading.Lock()
         self.service_slots = threading.BoundedSemaphore(p['service_capacity'])
@@ -138,9 +175,12 @@ class PredictorNode(Node):
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
                        0, 'clock_resets': 0, 'service_requests': 0, 'service_busy': 0,
                        'service_failed': 0}
-        self.last_forecast_t = -math.inf
-        self.latest_plan: tuple[float, dict] | None = None
+        self.latest_plan: tuple[ControlPlan, dict] | None = None
         self.pending: Pending | None = None
+        # A scheduled state whose actuator or wind samples had not arrived when its wait
+        # ended (a burst read topic by topic): forecast once they catch up with it.
+        self.deferred: Pending | None = None
+        self.timeline_changes = 0   # restarts and re-anchors the schedule has seen
         started = time.perf_counter()
         self.engine.warm_up(self.horizon, window=window, max_batch=p['max_plans'])
         self.get_logger().info(
@@ -148,6 +188,8 @@ class PredictorNode(Node):
             f'{self.horizon}, relative threshold {self.engine.relative_threshold}, bound '
             f'{np.round(self.engine.bound, 5).tolist()}; compiled in '
             f'{time.perf_counter() - started:.1f} s')
+        if unbounded:
+            self.get_logger().warning(unbounded)
 
         self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
@@ -157,7 +199,7 @@ class PredictorNode(Node):
         self.readers = {}
         for topic, msg_class in messages.message_types(self.topic_map).items():
             self.readers[topic] = channel_reader(self.topic_map, topic)
-            self.create_subscription(msg_class, node_topic(topic),
+            self.create_subscription(msg_class, self.resolved[topic],
                                      partial(self._on_input, topic), depth,
                                      callback_group=inputs)
         self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10,
@@ -196,11 +238,14 @@ class PredictorNode(Node):
         self.p = p
         with self.lock:
             self.window.configure(p['max_gap'], p['max_age'], p['max_future'],
-                                  p['restart_span'])
+                                  p['restart_span'], p['re_anchor_after'])
             self.window.plausibility.quaternion_tolerance = p['quaternion_tolerance']
             self.health.silence_error = self._silence_error(p)
             self.health.max_age = p['max_age']
+            self.health.watchdog = p['watchdog_timeout']
             self.health.rejection_warn_fraction = p['rejection_warn_fraction']
+            if self.schedule.period != p['forecast_period']:
+                self.schedule = ForecastSchedule(p['forecast_period'])
         self.diag_timer.timer_period_ns = int(p['diagnostics_period'] * 1e9)
         if any(q.name == 'restart_span' for q in parameters):
             self._watch_clock_jumps(p['restart_span'])
@@ -220,39 +265,65 @@ class PredictorNode(Node):
     def _on_clock_jump(self, jump) -> None:
         with self.lock:
             self.window.clear()
-            self.last_forecast_t = -math.inf
-            self.pending = None
+            self.schedule.reset()
+            self.pending = self.deferred = None
             self.health.clock_jumped(self._now())
+        with self.count_lock:
             self.counts['clock_resets'] += 1
-        self.get_logger().warning(f'clock jumped by {jump.delta.nanoseconds * 1e-9:.1f} s: '
-                                  f'window cleared')
+        self._say('clock_jump', f'clock jumped by {jump.delta.nanoseconds * 1e-9:.1f} s: '
+                                f'window cleared ({self._clock_publishers_note()})')
+
+    def _clock_publishers(self) -> list[str] | None:
+        """Return the nodes publishing /clock (with use_sim_time), else None."""
+        if not self.sim_time:
+            return None
+        return sorted(f'{i.node_namespace.rstrip("/")}/{i.node_name}'
+                      for i in self.get_publishers_info_by_topic(CLOCK_TOPIC))
+
+    def _clock_publishers_note(self) -> str:
+        names = self._clock_publishers()
+        if names is None:
+            return 'wall clock'
+        return f'{len(names)} publisher(s) on {CLOCK_TOPIC}: {", ".join(names) or "none"}'
 
     # ------------------------------------------------------------------ inputs
     def _on_input(self, topic: str, msg, info=None) -> None:
         try:
             values = self.readers[topic](msg)
         except (AttributeError, IndexError, TypeError, ValueError) as exc:
-            with self.lock:
+            with self.count_lock:
                 self.counts['malformed_inputs'] += 1
-            self._say('malformed', f'rejected {topic}: {exc}')
+            self._say('malformed', f'rejected {self.resolved[topic]}: {exc}')
             return
         # Types without a header are timed on arrival, as offline conversion does.
         header = getattr(msg, 'header', None)
         now = self._now()
         t = messages.seconds_from_stamp(header.stamp) if header is not None else now
+        is_state = topic == self.window.state_topic
+        wall = time.monotonic()
         with self.lock:
-            restarts = self.window.restarts
             reason = self.window.push(topic, t, values, now,
-                                      None if header is None else header.frame_id)
-            if self.window.restarts != restarts:
-                self.last_forecast_t = -math.inf
+                                      None if header is None else header.frame_id, wall)
+            changes = self.window.restarts + len(self.window.re_anchors)
+            if changes != self.timeline_changes:
+                self.timeline_changes = changes
+                self.schedule.reset()
+                re_anchored = self.window.lines.latest
+            else:
+                re_anchored = None
             if not reason:
-                self.health.record_input(now)
+                self.health.record_input(now, wall, is_state)
+        if re_anchored is not None and re_anchored.at == now:
+            self.get_logger().warning(
+                f'{self.window.lines.describe(self.resolved[topic])}: window re-anchored '
+                f'(offset {re_anchored.old_offset:.1f} -> {re_anchored.new_offset:.1f} s)')
         if reason:
             self._say('rejected', f'rejected input: {reason}')
             return
-        if topic == self.window.state_topic:
+        if is_state:
             self._on_state(t, info)
+        else:
+            self._resume_deferred()
         self.input_event.set()
 
     def _say(self, key: str, text: str, error: bool = False) -> None:
@@ -266,29 +337,36 @@ class PredictorNode(Node):
 
     def _on_state(self, t: float, info) -> None:
         with self.lock:
-            last = self.last_forecast_t
-            if t - last < self.p['forecast_period'] and t >= last:
+            if not self.schedule.due(t):
                 return
             received_ns = (info or {}).get('received_timestamp') or time.time_ns()
             # A message that waited in the queue: newer ones are probably behind it.
             backlogged = (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']
+            self.pending, self.deferred = Pending(t, received_ns, backlogged), None
+        with self.count_lock:
             self.counts['states_skipped_as_backlog'] += backlogged
-            self.pending = Pending(t, received_ns, backlogged)
+        self.forecast_trigger.trigger()
+
+    def _resume_deferred(self) -> None:
+        with self.lock:
+            if self.deferred is None or not self._synced(self.deferred.t):
+                return
+            self.pending, self.deferred = self.deferred, None
         self.forecast_trigger.trigger()
 
     def _on_plan(self, msg: ControlPlan) -> None:
         if self.limits is None:
-            self._say('no_plans', f'ignoring {PLAN_TOPIC}: {self._no_plans()}')
+            self._say('no_plans', f'ignoring {self.plan_topic}: {self._no_plans()}')
             return
         try:
             fields = check_plan(plan_fields(msg), self.horizon, self.limits, exact=False)
         except PlanError as exc:
-            with self.lock:
+            with self.count_lock:
                 self.counts['plans_rejected'] += 1
-            self._say('plan_rejected', f'rejected {PLAN_TOPIC}: {exc}')
+            self._say('plan_rejected', f'rejected {self.plan_topic}: {exc}')
             return
         with self.lock:
-            self.latest_plan = (messages.seconds_from_stamp(msg.header.stamp), fields)
+            self.latest_plan = (msg, fields)
 
     # ------------------------------------------------------------------ forecasting
     def _now(self) -> float:
@@ -301,7 +379,7 @@ class PredictorNode(Node):
 
     def _forecast_worker(self) -> None:
         """Forecast the pending state once its sample is complete or the wait is over."""
-        started = time.monotonic()
+        started, started_msg = time.monotonic(), self._now()
         while True:
             with self.lock:
                 pending = self.pending
@@ -310,11 +388,12 @@ class PredictorNode(Node):
                 synced = self._synced(pending.t)
             self.input_event.clear()
             if pending.backlogged:
-                # Read a burst through first, then forecast once from the latest window
-                # (at the latest one forecast period after the first backlogged state).
-                wait = min(self.p['backlog_skip'],
-                           started + self.p['forecast_period'] - time.monotonic())
-                if wait > 0 and self.input_event.wait(wait):
+                # Read a burst through first, then forecast once from the latest window:
+                # at the latest one forecast period of message time after the first
+                # backlogged state (a wall second is ten periods at 10x simulated time),
+                # plus at most one backlog_skip of wall time.
+                left = started_msg + self.p['forecast_period'] - self._now()
+                if left > 0 and self.input_event.wait(min(self.p['backlog_skip'], left)):
                     continue
             elif not synced:
                 wait = started + self.p['sync_timeout'] - time.monotonic()
@@ -326,9 +405,10 @@ class PredictorNode(Node):
             pending, self.pending = self.pending, None
             if pending is None:
                 return
-            self.last_forecast_t = max(self.last_forecast_t, pending.t)
             result = self._window()
             plan = self.latest_plan
+            if not result.ready and not self._synced(pending.t):
+                self.deferred = pending
         if result.ready:
             self._forecast_and_publish(result, plan, pending.received_ns)
 
@@ -337,25 +417,28 @@ class PredictorNode(Node):
         self.health.record_window(result.status, result.reason, result.fill)
         return result
 
-    def _future_controls(self, result, plan) -> np.ndarray:
+    def _future_controls(self, result, plan) -> tuple[np.ndarray, Assumed]:
+        """Return the future controls (1, H, n) of the published forecast and what they are."""
         if plan is not None:
-            stamp, fields = plan
-            age = result.t_end - stamp
+            msg, fields = plan
+            age = result.t_end - messages.seconds_from_stamp(msg.header.stamp)
             if 0.0 <= age <= self.p['plan_timeout']:
                 shift = int(round(age / self.spec.dt))
                 try:
                     return plan_controls({f: v[shift:shift + self.horizon]
                                           for f, v in fields.items()},
-                                         result.controls[-1], self.horizon, self.limits)[None]
+                                         result.controls[-1], self.horizon,
+                                         self.limits)[None], followed(msg)
                 except PlanError as exc:
-                    self._say('stale_plan', f'ignoring {PLAN_TOPIC} from {age:.1f} s '
+                    self._say('stale_plan', f'ignoring {self.plan_topic} from {age:.1f} s '
                                             f'before the forecast: {exc}')
-        return hold_latest(result.controls[-1], self.horizon)
+        return hold_latest(result.controls[-1], self.horizon), Assumed()
 
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
-        forecast = self.engine.forecast(result.states, result.controls,
-                                        self._future_controls(result, plan))
-        (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics)
+        future, assumed = self._future_controls(result, plan)
+        forecast = self.engine.forecast(result.states, result.controls, future)
+        (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics,
+                                         [assumed])
         problem = self._withheld(forecast.hybrid, msg)
         if problem:
             with self.lock:
@@ -366,7 +449,7 @@ class PredictorNode(Node):
         latency_ms = (time.time_ns() - received_ns) * 1e-6
         with self.lock:
             self.health.record_forecast(self._now(), latency_ms, bound_hit_fraction(
-                forecast.hybrid, forecast.physics, self.engine.bound))
+                forecast.hybrid, forecast.physics, self.engine.bound), time.monotonic())
         self.path_pub.publish(self._path_message(msg))
 
     def _withheld(self, hybrid: np.ndarray, msg: Forecast) -> str | None:
@@ -374,7 +457,7 @@ class PredictorNode(Node):
                                          np.asarray(msg.heading)), self.spec)
 
     def _forecast_messages(self, result, hybrid: np.ndarray, physics: np.ndarray,
-                           ) -> list[Forecast]:
+                           assumed: list[Assumed]) -> list[Forecast]:
         """Return one Forecast per plan of a batch, hybrid and physics (plans, H, n)."""
         north, east, psi = track(hybrid, result.pose, self.spec)   # one pass, all plans
         x_enu, y_enu, _ = frames.position_ned_to_enu(north, east)
@@ -395,6 +478,12 @@ class PredictorNode(Node):
             msg.x, msg.y, msg.heading = doubles(x_enu[i]), doubles(y_enu[i]), doubles(
                 heading[i])
             msg.model_id = self.engine.model_id
+            msg.controls_assumed = assumed[i].controls
+            msg.plan_id = assumed[i].plan_id
+            if assumed[i].plan_stamp is not None:
+                msg.plan_stamp = assumed[i].plan_stamp
+            msg.relative_threshold = self.relative_threshold
+            msg.bounded = self.bounded
             out.append(msg)
         return out
 
@@ -421,11 +510,13 @@ class PredictorNode(Node):
                 f'latest controls are made')
 
     def _on_predict(self, request, response):
-        with self.lock:
+        # Admission first, then a counter under a lock of its own: a "busy" answer never
+        # waits for a window assembly, a forecast or a batch in progress.
+        admitted = self.service_slots.acquire(blocking=False)
+        with self.count_lock:
             self.counts['service_requests'] += 1
-        if not self.service_slots.acquire(blocking=False):
-            with self.lock:
-                self.counts['service_busy'] += 1
+            self.counts['service_busy'] += not admitted
+        if not admitted:
             response.success = False
             response.message = (f'busy: {self.p["service_capacity"]} requests in progress; '
                                 f'retry later')
@@ -440,7 +531,7 @@ class PredictorNode(Node):
             self.service_slots.release()
         if not response.success:
             response.forecasts = []
-            with self.lock:
+            with self.count_lock:
                 self.counts['service_failed'] += 1
         return response
 
@@ -463,7 +554,8 @@ class PredictorNode(Node):
                                          index=i) for i, f in enumerate(fields)])
         with self.batch_lock:
             forecast = self.engine.forecast(result.states, result.controls, future)
-        out = self._forecast_messages(result, forecast.hybrid, forecast.physics)
+        out = self._forecast_messages(result, forecast.hybrid, forecast.physics,
+                                      [followed(plan) for plan in plans])
         for i, msg in enumerate(out):
             problem = self._withheld(forecast.hybrid[i], msg)
             if problem:
@@ -473,22 +565,37 @@ class PredictorNode(Node):
 
     # ------------------------------------------------------------------ health
     def _publish_diagnostics(self) -> None:
-        with self.lock:
+        clock_publishers = self._clock_publishers()
+        with self.count_lock:
             counts = dict(self.counts)
+        with self.lock:
             rejected = self.window.rejected_counts()
             accepted = sum(s.counts.accepted for s in self.window.streams.values())
             rejected['malformed'] = counts.pop('malformed_inputs')
             newest = self.window.streams[self.window.state_topic].latest_time
-            level, message, values = self.health.report(self._now(), newest, accepted,
-                                                        rejected)
+            level, message, values = self.health.report(
+                self._now(), newest, accepted, rejected, wall=time.monotonic(),
+                lines=self.window.lines, clock_publishers=clock_publishers)
             counts['source_restarts'] = self.window.restarts
         values.update({k: str(v) for k, v in counts.items()})
-        status = DiagnosticStatus(level=bytes([level]), name=f'{self.get_name()}: forecast',
-                                  message=message, hardware_id=self.engine.model_id)
+        values.update({'model_id': self.engine.model_id, 'vessel': self.spec.name,
+                       'relative_threshold': f'{self.relative_threshold:g}',
+                       'bounded': str(self.bounded).lower()})
+        status = DiagnosticStatus(level=bytes([level]), name=self.status_name(),
+                                  message=message, hardware_id=self.hardware_id())
         status.values = [KeyValue(key=k, value=v) for k, v in values.items()]
         diag = DiagnosticArray(status=[status])
         diag.header.stamp = self.get_clock().now().to_msg()
         self.diag_pub.publish(diag)
+
+    def status_name(self) -> str:
+        """Return the /diagnostics status name: the node's fully qualified name."""
+        return f'{self.get_fully_qualified_name()}: forecast'
+
+    def hardware_id(self) -> str:
+        """Return the status's hardware id: the vessel, by its namespace and type."""
+        namespace = self.get_namespace().strip('/')
+        return f'{namespace}/{self.spec.name}' if namespace else self.spec.name
 
 
 def check_time_parameters(p: dict) -> None:
@@ -515,6 +622,11 @@ def plan_fields(plan: ControlPlan) -> dict:
     return {f: np.asarray(getattr(plan, f)) for f in PLAN_FIELDS}
 
 
+def followed(plan: ControlPlan) -> Assumed:
+    """Return what a forecast following ``plan`` assumed."""
+    return Assumed(Forecast.CONTROLS_PLAN, plan.plan_id, plan.header.stamp)
+
+
 def executor_for(node: PredictorNode) -> MultiThreadedExecutor:
     """
     Return the executor the predictor spins in.
@@ -523,13 +635,6 @@ def executor_for(node: PredictorNode) -> MultiThreadedExecutor:
     group and the "busy" answers, so no group ever waits for a free thread.
     """
     return MultiThreadedExecutor(num_threads=node.p['service_capacity'] + 4)
-
-
-def plan_limits(vessel) -> ActuatorLimits | None:
-    """Limits of control plans, for vessels with the plan message's actuators; else None."""
-    if vessel.control_names != PLAN_CONTROLS:
-        return None
-    return ActuatorLimits(vessel.actuator('n').high, vessel.actuator('delta_port').high)
 
 
 def main(args=None) -> int:

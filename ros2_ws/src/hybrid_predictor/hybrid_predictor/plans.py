@@ -4,8 +4,9 @@ Control plans for a forecast: validation and the model's future-control matrix (
 A forecast needs one control vector per step, c = [n, delta_port, delta_stbd,
 wind_speed, wind_dir_cos, wind_dir_sin] (docs/conventions.md). Controllers give the
 actuator set-points; the wind is either given too or held at its latest measurement.
-Plans are checked before they reach the model: a wrong length, a non-finite value or
-a set-point outside the actuator limits is refused with a reason.
+Plans are checked before they reach the model against what the vessel file declares:
+a wrong length, a non-finite value, a set-point outside its actuator's ``range`` or a
+wind speed outside ``limits.wind_speed`` is refused with a reason.
 """
 
 from __future__ import annotations
@@ -19,6 +20,13 @@ from hybrid_models.metrics import dead_reckoning
 
 ACTUATOR_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd')
 WIND_FIELDS = ('wind_speed', 'wind_direction')
+PLAN_FIELDS = ACTUATOR_FIELDS + WIND_FIELDS
+# The vessel controls a ControlPlan message gives (its fields are the patrol boat's),
+# and the vessel quantity whose declared range bounds each field.
+PLAN_CONTROLS = ('n', 'delta_port', 'delta_stbd', 'wind_speed', 'wind_dir_cos',
+                 'wind_dir_sin')
+FIELD_QUANTITY = {'shaft_speed': 'n', 'rudder_port': 'delta_port',
+                  'rudder_stbd': 'delta_stbd', 'wind_speed': 'wind_speed'}
 
 
 class PlanError(ValueError):
@@ -26,11 +34,31 @@ class PlanError(ValueError):
 
 
 @dataclass(frozen=True)
-class ActuatorLimits:
-    """Plausible set-points: shaft speed in [0, shaft_max] rad/s, |rudder| <= rudder_max."""
+class PlanLimits:
+    """
+    Declared ranges of the plan fields: field -> (low, high, unit), or None if undeclared.
 
-    shaft_max: float
-    rudder_max: float
+    ``wind_direction`` is an angle (rad, relative to the bow): any finite value is one.
+    """
+
+    vessel: str
+    ranges: dict
+
+    @classmethod
+    def of(cls, vessel) -> PlanLimits | None:
+        """Return a vessel's plan limits, or None if its controls are not the plan's."""
+        if vessel.control_names != PLAN_CONTROLS:
+            return None
+        ranges = {}
+        for field, quantity in FIELD_QUANTITY.items():
+            if quantity in vessel.actuator_names:
+                actuator = vessel.actuator(quantity)
+                ranges[field] = (actuator.low, actuator.high, actuator.unit)
+            elif quantity in vessel.limits:
+                ranges[field] = (*vessel.limits[quantity], 'm/s')
+            else:
+                ranges[field] = None
+        return cls(vessel.name, ranges)
 
 
 def hold_latest(latest_control: np.ndarray, horizon: int) -> np.ndarray:
@@ -38,7 +66,7 @@ def hold_latest(latest_control: np.ndarray, horizon: int) -> np.ndarray:
     return np.broadcast_to(latest_control, (1, horizon, latest_control.shape[-1])).copy()
 
 
-def check_plan(plan: dict[str, np.ndarray], horizon: int, limits: ActuatorLimits,
+def check_plan(plan: dict[str, np.ndarray], horizon: int, limits: PlanLimits,
                index: int = 0, exact: bool = True) -> dict[str, np.ndarray]:
     """
     Validate a whole plan before any array work; return its fields as float arrays.
@@ -48,7 +76,8 @@ def check_plan(plan: dict[str, np.ndarray], horizon: int, limits: ActuatorLimits
     (``exact``), or at least ``horizon`` (a plan on the topic, which may start before
     the forecast does). The wind fields are given together with that length or both
     left empty (documented default: the latest measured wind holds). Every value must
-    be finite and inside the actuator limits; wind speed is >= 0. Raise PlanError.
+    be finite, and inside its declared range (``limits``); a wind speed is >= 0 on any
+    vessel. Raise PlanError.
     """
     where = f'plan {index}'
     arrays = {}
@@ -73,18 +102,26 @@ def check_plan(plan: dict[str, np.ndarray], horizon: int, limits: ActuatorLimits
         bad = np.flatnonzero(~np.isfinite(values))
         if len(bad):
             raise PlanError(f'{where}: {name}[{bad[0]}] is {values[bad[0]]}')
-    if np.any(arrays['shaft_speed'] < 0) or np.any(arrays['shaft_speed'] > limits.shaft_max):
-        raise PlanError(f'{where}: shaft_speed outside [0, {limits.shaft_max:.4g}] rad/s')
-    for name in ('rudder_port', 'rudder_stbd'):
-        if np.any(np.abs(arrays[name]) > limits.rudder_max):
-            raise PlanError(f'{where}: {name} outside +-{limits.rudder_max:.4g} rad')
     if np.any(arrays['wind_speed'] < 0):
         raise PlanError(f'{where}: wind_speed must be >= 0')
+    for name, declared in limits.ranges.items():
+        values = arrays[name]
+        if not len(values):
+            continue
+        if declared is None:
+            raise PlanError(f'{where}: vessel {limits.vessel!r} declares no range for '
+                            f'{name} (limits.{FIELD_QUANTITY[name]} in its vessel file); '
+                            f'leave it out')
+        low, high, unit = declared
+        bad = np.flatnonzero((values < low) | (values > high))
+        if len(bad):
+            raise PlanError(f'{where}: {name}[{bad[0]}] = {values[bad[0]]:.6g} outside '
+                            f'[{low:.6g}, {high:.6g}] {unit}')
     return arrays
 
 
 def plan_controls(plan: dict[str, np.ndarray], latest_control: np.ndarray, horizon: int,
-                  limits: ActuatorLimits, index: int = 0) -> np.ndarray:
+                  limits: PlanLimits, index: int = 0) -> np.ndarray:
     """
     Return one plan's future controls (horizon, 6), or raise PlanError.
 

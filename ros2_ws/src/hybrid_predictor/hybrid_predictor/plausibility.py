@@ -8,13 +8,15 @@ sample is checked, in the model's quantities, against what the vessel file decla
   ``vessel_physics.frames``) and the roll angle ``phi`` against ``limits`` of the
   vessel file ("plausible ranges of the states; samples outside are spikes");
 - every actuator against its declared ``range`` (shaft speed, rudder angles);
+- the measured wind speed against ``limits.wind_speed`` where the vessel file gives it;
 - an orientation quaternion must have unit norm within ``quaternion_tolerance``;
 - a message whose values are frame-dependent (velocities, attitude, position, wind)
   must name its frame: an empty ``frame_id`` is rejected (``no_frame_id``).
 
 A vessel file without a limit for one of its states is refused at start-up in one line:
 the predictor cannot tell a spike from a state without it. Heading, position and wind
-have no declared bounds and are only checked for being finite (by the window).
+direction have no declared bounds and are only checked for being finite (by the
+window).
 ``forecast_problem`` holds every forecast to the same limits before it is published.
 """
 
@@ -62,6 +64,7 @@ class Plausibility:
             self.bounds[ACTUATOR_PREFIX + actuator.name] = (
                 1.0, actuator.name, actuator.low, actuator.high)
         self.roll_limits = vessel.limits['phi'] if vessel.has_roll else None
+        self.wind_speed_limits = vessel.limits.get('wind_speed')
         self.enu = topic_map.frames.get('attitude') == 'enu_flu'
         self.framed_topics = {leaf.topic for leaf in topic_map.leaves()
                               if leaf.group in FRAMED_GROUPS}
@@ -81,6 +84,12 @@ class Plausibility:
             reason = self._quaternion(topic, [values[c] for c in QUATERNION])
             if reason:
                 return reason
+        if self.wind_speed_limits is not None:
+            speed = wind_speed(values)
+            low, high = self.wind_speed_limits
+            if speed is not None and not low <= speed <= high:
+                return 'implausible', (f'{topic}: wind speed = {speed:.6g} outside the '
+                                       f'vessel limits [{low:g}, {high:g}]')
         for channel, value in values.items():
             bound = self.bounds.get(channel)
             if bound is None:
@@ -106,6 +115,13 @@ class Plausibility:
             return 'implausible', (f'{topic}: phi = {phi:.6g} outside the vessel limits '
                                    f'[{low:g}, {high:g}]')
         return None
+
+
+def wind_speed(values: dict[str, float]) -> float | None:
+    """Return the wind speed a sample carries (its vector's length, or the speed), or None."""
+    if 'wind_x' in values and 'wind_y' in values:
+        return math.hypot(values['wind_x'], values['wind_y'])
+    return values.get('wind_speed')
 
 
 def forecast_problem(hybrid: np.ndarray, track: tuple[np.ndarray, ...], vessel) -> str | None:

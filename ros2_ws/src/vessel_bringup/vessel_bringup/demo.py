@@ -14,21 +14,21 @@ plan of shaft-speed and rudder set-points (made by the simulator's human-like op
 model with a seed of its own) and publishes the same plan on /vessel/control_plan, so
 each forecast follows the controls that are actually applied, as in the paper's
 evaluation. With --no-plan the predictor assumes the latest controls hold instead.
+The nodes are stopped however the demo ends (``vessel_bringup.processes``), by
+SIGTERM and SIGHUP too.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
-import os
 from pathlib import Path
-import signal
-import subprocess
 import sys
 import time
 
-from ament_index_python.packages import PackageNotFoundError, get_package_prefix
 import numpy as np
+
+from vessel_bringup.processes import Children, node_argv, rclpy_options
 
 STATES = ('u', 'v', 'p', 'r', 'phi')
 UNITS = ('m/s', 'm/s', 'rad/s', 'rad/s', 'rad')
@@ -58,34 +58,6 @@ def parse_args(argv=None):
     return args
 
 
-def executable(package: str, name: str) -> Path:
-    """Return where `ros2 run PACKAGE NAME` finds the executable, or exit with a hint."""
-    try:
-        prefix = get_package_prefix(package)
-    except PackageNotFoundError:
-        sys.exit(f'demo: error: package {package} is not installed; run `make setup` first')
-    path = Path(prefix) / 'lib' / package / name
-    if not path.is_file():
-        sys.exit(f'demo: error: {path} is missing; run `make setup` first')
-    return path
-
-
-def start(argv: list[str]) -> subprocess.Popen:
-    """Start a node in its own process group, its log lines shown on this terminal."""
-    return subprocess.Popen([str(a) for a in argv], start_new_session=True)
-
-
-def stop(process: subprocess.Popen) -> None:
-    """Stop a process group: SIGINT, then SIGKILL if it does not go."""
-    if process.poll() is None:
-        os.killpg(process.pid, signal.SIGINT)
-        try:
-            process.wait(10)
-        except subprocess.TimeoutExpired:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.wait()
-
-
 def make_plan(seed: int, seconds: int) -> np.ndarray:
     """Return set-points (seconds, 3): n (rad/s), delta_port, delta_stbd (rad) per second."""
     from vessel_physics.simulation.config import load_simulation
@@ -113,7 +85,7 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
     from vessel_ros_bridge import messages as m
     from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
-    rclpy.init()
+    rclpy.init(**rclpy_options())
     # In the nodes' namespace, so the shared relative topic names resolve as theirs do.
     node = rclpy.create_node('demo_client', namespace=DEFAULT_NAMESPACE)
     truth: dict[int, tuple] = {}
@@ -257,21 +229,18 @@ def main(argv=None) -> int:
     print(f'demo: simulator at {args.speed_up:g}x real time with the predictor; '
           f'{args.minutes:g} simulated minutes (about {seconds / args.speed_up:.0f} s)')
     plan = None if args.no_plan else make_plan(args.seed + 1000, int(seconds) + 1000)
-    processes = [start([executable('hybrid_predictor', 'predictor'), '--ros-args',
-                        '-p', 'use_sim_time:=true', '-p', f'plan_timeout:={seconds + 60}'])]
-
-    def start_simulator():
-        processes.append(start([
-            executable('ship_sim_node', 'simulator'), '--ros-args', '-p', f'seed:={args.seed}',
-            '-p', f'real_time_factor:={args.speed_up}', '-p', 'publish_truth:=true',
-            '-p', f'start_time:={START}', '--log-level', 'warn']))
-
     try:
+        predictor = node_argv('hybrid_predictor', 'predictor', params={
+            'use_sim_time': True, 'plan_timeout': seconds + 60})
+        simulator = node_argv('ship_sim_node', 'simulator', '--log-level', 'warn', params={
+            'seed': args.seed, 'real_time_factor': args.speed_up, 'publish_truth': True,
+            'start_time': START})
+    except FileNotFoundError as exc:
+        sys.exit(f'demo: error: {exc}')
+    with Children() as children:
+        children.start(predictor, 'predictor')
         truth, forecasts = collect(seconds, args.speed_up, args.evaluate_every,
-                                   start_simulator, plan)
-    finally:
-        for process in reversed(processes):
-            stop(process)
+                                   lambda: children.start(simulator, 'simulator'), plan)
     figures, pairs = evaluate(truth, forecasts)
     if figures is None:
         print(f'demo: error: no forecast matured ({len(forecasts)} forecasts, {len(truth)} s '

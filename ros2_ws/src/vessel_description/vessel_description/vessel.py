@@ -27,6 +27,7 @@ from .vocabulary import (
     ACTUATOR_KINDS,
     ENVIRONMENT,
     ENVIRONMENT_MIRROR,
+    LIMITED_ENVIRONMENT,
     PLANAR_STATES,
     POSE,
     ROLL_STATES,
@@ -285,7 +286,8 @@ def parse_vessel(data: Any, source: str = '<inline>') -> Vessel:
     waters = data.get('waters', DEFAULT_WATERS)
     if waters not in WATERS:
         raise VesselError(f'{where}: waters must be one of {list(WATERS)}, got {waters!r}')
-    limits = _limits(data.get('limits') or {}, states, where)
+    limits = _limits(data.get('limits') or {}, states, where,
+                     tuple(c for env in environment for c in LIMITED_ENVIRONMENT.get(env, ())))
     physics = data.get('physics')
     if physics is not None and not isinstance(physics, str):
         raise VesselError(f'{where}: physics must name a hull parameter file, got {physics!r}')
@@ -374,13 +376,15 @@ def _particulars(value: Any, where: str) -> dict[str, float]:
     return out
 
 
-def _limits(value: Any, states: tuple[str, ...], where: str) -> dict[str, tuple[float, float]]:
+def _limits(value: Any, states: tuple[str, ...], where: str,
+            environment: tuple[str, ...] = ()) -> dict[str, tuple[float, float]]:
     if not isinstance(value, Mapping):
         raise VesselError(f'{where}: limits must map states to [low, high]')
     out = {}
     for key, rng in value.items():
-        if key not in states:
-            raise VesselError(f'{where}: limits.{key}: not a state of this vessel {states}')
+        if key not in states + environment:
+            raise VesselError(f'{where}: limits.{key}: not a state of this vessel {states} '
+                              f'nor one of its environment inputs {environment}')
         if not (isinstance(rng, list) and len(rng) == 2 and all(
                 isinstance(x, (int, float)) for x in rng) and rng[0] < rng[1]):
             raise VesselError(f'{where}: limits.{key} must be [low, high], got {rng!r}')

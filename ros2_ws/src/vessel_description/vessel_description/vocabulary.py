@@ -53,6 +53,9 @@ ENVIRONMENT: dict[str, tuple[tuple[str, str, str], ...]] = {
 # Sign of each environment column in the mirror image (wind from port becomes starboard).
 ENVIRONMENT_MIRROR: dict[str, float] = {'wind_speed': 1.0, 'wind_dir_cos': 1.0,
                                         'wind_dir_sin': -1.0}
+# Environment columns a vessel file may give a plausible range in ``limits`` (the
+# direction is an angle: any finite value is one).
+LIMITED_ENVIRONMENT: dict[str, tuple[str, ...]] = {'wind': ('wind_speed',)}
 
 # Where a vessel's recordings come from: ``open`` water (wind, waves and currents can act)
 # or a ``basin`` (towing tank, model basin: still water, no current).

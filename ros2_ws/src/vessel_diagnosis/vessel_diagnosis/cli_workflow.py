@@ -70,7 +70,8 @@ def main(argv=None) -> int:
     try:
         dataset = read_dataset(args.dataset)
         nominal = nominal_physics(dataset, args.physics)
-        folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction)
+        folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
+                           args.fold_by)
         diagnoses = {}
         for fold in folds:
             say(f'diagnosing fold {fold.index} ({len(fold.train)} training runs, judged on '

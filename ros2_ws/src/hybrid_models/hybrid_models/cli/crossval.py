@@ -68,6 +68,9 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--folds', type=int,
                         help="hold each recording out once in K folds (default: the "
                              "dataset's own split)")
+    parser.add_argument('--fold-by', metavar='REGEX',
+                        help="one fold per distinct match of REGEX in the recordings' "
+                             "names, e.g. one per kind of manoeuvre (instead of --folds)")
     parser.add_argument('--val-fraction', type=float, default=0.1,
                         help="share of a fold's other recordings that validate (0.1)")
     parser.add_argument('--fold-seed', type=int, default=0,
@@ -101,7 +104,7 @@ def report_text(title: str, result: dict, table: str, intro: list[str]) -> str:
     """Return report.md: what was compared how, the table, the do-no-harm check."""
     p = result['protocol']
     folds = ("the dataset's own split" if p['folds'] == 1 else
-             f"{p['folds']} folds, every recording held out once")
+             f"{p['folds']} folds, every recording in one of them held out once")
     lines = [f'# {title}', '', *intro,
              f"Test forecasts: {p['n_forecasts']} of {p['horizon']} steps (one every "
              f"{p['stride']} samples after a {p['window']}-sample window), pooled over "
@@ -128,7 +131,8 @@ def main(argv=None) -> int:
     try:
         dataset = read_dataset(args.dataset)
         spec = dataset.vessel
-        folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction)
+        folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
+                           args.fold_by)
         models = [ModelPlan(label, Path(config).resolve(), args.set)
                   for label, config in args.model]
         result = run_plan(args, models, folds, say)

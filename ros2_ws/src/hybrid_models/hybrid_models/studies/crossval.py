@@ -22,6 +22,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from dataclasses import dataclass, field
 import json
 from pathlib import Path
+import re
 import sys
 
 import numpy as np
@@ -69,26 +70,26 @@ class ModelPlan:
 
 
 def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
-               val_fraction: float = 0.1) -> list[Fold]:
+               val_fraction: float = 0.1, fold_by: str | None = None) -> list[Fold]:
     """
     Write the fold views under ``out/folds`` and return them.
 
     ``folds`` None keeps the dataset's split (one fold). Otherwise recordings are
-    shuffled with ``seed`` and dealt into ``folds`` test groups; of each fold's other
-    recordings, ``val_fraction`` (at least one) validate and the rest train.
+    shuffled with ``seed`` and dealt into ``folds`` test groups. ``fold_by`` (a regular
+    expression) instead makes one fold per distinct match in the recordings' names, e.g.
+    one per kind of manoeuvre; recordings it does not match always train. Of each fold's
+    other recordings, ``val_fraction`` (at least one) validate and the rest train.
     """
-    if folds is None:
+    if folds is None and fold_by is None:
         splits = [{name: dataset.run_ids(name) for name in ('train', 'val', 'test')}]
+        notes = ["the dataset's own split"]
     else:
         recordings = dataset.recordings()
-        if not 2 <= folds <= len(recordings):
-            raise ValueError(f'folds must be between 2 and the {len(recordings)} '
-                             f'recordings of {dataset.root}, got {folds}')
         if not 0 < val_fraction < 1:
             raise ValueError(f'val_fraction must be in (0, 1), got {val_fraction}')
         names = sorted(recordings)
         order = [names[i] for i in np.random.default_rng(seed).permutation(len(names))]
-        groups = [list(g) for g in np.array_split(np.asarray(order, dtype=object), folds)]
+        groups, notes = _test_groups(order, folds, fold_by, dataset)
         splits = []
         for k, test in enumerate(groups):
             rest = [r for r in order if r not in test]
@@ -99,18 +100,36 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
                                        ('train', rest[n_val:]))}
             splits.append(runs)
     out_folds = []
-    for k, split in enumerate(splits):
+    for k, (split, note) in enumerate(zip(splits, notes, strict=True)):
         path = Path(out) / 'folds' / f'fold{k}'
-        note = (f'fold {k} of {folds} (recordings shuffled with seed {seed})' if folds
-                else "the dataset's own split")
         resplit(dataset, path, split, note)
         out_folds.append(Fold(k, path, *(tuple(split[s]) for s in ('train', 'val', 'test'))))
     return out_folds
 
 
+def _test_groups(order: list[str], folds: int | None, fold_by: str | None,
+                 dataset: Dataset) -> tuple[list[list[str]], list[str]]:
+    """Return the recordings each fold tests, and what each fold is."""
+    if fold_by is not None:
+        pattern = re.compile(fold_by)
+        keys = {rec: m.group(0) for rec in order if (m := pattern.search(Path(rec).name))}
+        kinds = sorted(set(keys.values()))
+        if len(kinds) < 2:
+            raise ValueError(f'--fold-by {fold_by!r} matches {len(kinds)} distinct kinds of '
+                             f'recording in {dataset.root}; it needs at least 2')
+        return ([[rec for rec in order if keys.get(rec) == kind] for kind in kinds],
+                [f'fold of the recordings matching {kind!r} ({fold_by!r})' for kind in kinds])
+    if not 2 <= folds <= len(order):
+        raise ValueError(f'folds must be between 2 and the {len(order)} recordings of '
+                         f'{dataset.root}, got {folds}')
+    groups = [list(g) for g in np.array_split(np.asarray(order, dtype=object), folds)]
+    return groups, [f'fold {k} of {folds} (recordings shuffled)' for k in range(folds)]
+
+
 def run_dir(out: Path, label: str, fold: Fold, seed: int) -> Path:
-    """Return where a (model, fold, seed) training writes."""
-    return Path(out) / 'runs' / label / f'fold{fold.index}' / f'seed{seed}'
+    """Return where a (model, fold, seed) training writes (the label made a folder name)."""
+    folder = re.sub(r'[^A-Za-z0-9_.+-]+', '_', label).strip('_') or 'model'
+    return Path(out) / 'runs' / folder / f'fold{fold.index}' / f'seed{seed}'
 
 
 def train_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
@@ -162,19 +181,21 @@ def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
                         (fp, name, lambda w=windows, p=model.physical: predict(PhysicsOnly(p),
                                                                               w)))
     true = np.concatenate(targets)
+    # One scale of each state for every model's state error: that of the held-out runs.
+    scale = true.reshape(-1, true.shape[-1]).std(axis=0)
     rows, curves, physics_rows = [], {}, {}
     for m in models:
         metrics = []
         for s in seeds:
             pred = np.concatenate(preds[(m.label, s)])
-            metrics.append(forecast_metrics(pred, true, spec))
+            metrics.append(forecast_metrics(pred, true, spec, state_std=scale))
             curves.setdefault(m.label, []).append(_position_curve(pred, true, spec))
         row = seed_row(m.label, metrics) if len(seeds) > 1 else {
             'label': m.label, 'metrics': metrics[0]}
         row['per_seed_metrics'] = metrics
         if (m.label, seeds[0]) in physics:
-            own = [_physics_pooled(physics[(m.label, s)], true, spec, physics_rows, curves)
-                   for s in seeds]
+            own = [_physics_pooled(physics[(m.label, s)], true, spec, physics_rows, curves,
+                                   scale) for s in seeds]
             row['physics'] = sorted({p['label'] for p in own})
             row['harms_vs_physics'] = [harms(mm['profile'], p['metrics']['profile'])
                                        for mm, p in zip(metrics, own, strict=True)]
@@ -193,7 +214,7 @@ def _position_curve(pred: np.ndarray, true: np.ndarray, spec) -> list[float]:
 
 
 def _physics_pooled(per_fold: list, true: np.ndarray, spec, physics_rows: dict,
-                    curves: dict) -> dict:
+                    curves: dict, scale: np.ndarray) -> dict:
     """Return the pooled row of one seed's physics (per fold), made once per physics."""
     key = tuple(fp for fp, _, _ in per_fold)
     if key not in physics_rows:
@@ -201,7 +222,8 @@ def _physics_pooled(per_fold: list, true: np.ndarray, spec, physics_rows: dict,
         taken = {row['label'] for row in physics_rows.values()}
         label = name if name not in taken else f'{name} [{key[0][:6]}]'
         pred = np.concatenate([forecast() for _, _, forecast in per_fold])
-        physics_rows[key] = {'label': label, 'metrics': forecast_metrics(pred, true, spec),
+        physics_rows[key] = {'label': label,
+                             'metrics': forecast_metrics(pred, true, spec, state_std=scale),
                              'fingerprints': list(key)}
         curves[label] = [_position_curve(pred, true, spec)]
     return physics_rows[key]

@@ -75,13 +75,21 @@ DEFAULTS: dict = {
         # auto when the vessel file declares its mirror image (key mirror: a vessel
         # symmetric about its centre plane, actuators included), true, or false.
         'mirror': 'auto',
+        # A hybrid's physical part as one compiled program (JAX) with its Jacobian for
+        # the backward pass (hybrid_models.compiled_physics), on CPUs: the same step,
+        # several times faster for first-principles physics; false: torch's autograd.
+        'compiled_physics': True,
         # Do no harm (hybrid_models.selection): after training, the served relative
         # threshold is chosen on the validation runs among these (0, the physics alone,
         # always included; none above model.relative_threshold when that is set; null:
         # unbounded) as the best one not worse than the physics alone at any reported
         # step. false: serve model.relative_threshold as configured.
+        # "Worse" is judged per forecast, paired with the physics alone: worse beyond
+        # the validation runs' sampling error at this one-sided confidence (null: any
+        # difference at all counts).
         'selection': {'do_no_harm': True,
-                      'thresholds': [0.0, 0.01, 0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0]},
+                      'thresholds': [0.0, 0.01, 0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0],
+                      'confidence': 0.95},
     },
     # None: the vessel's horizon; stride horizon/7.5 (120 s of the paper's 900 s)
     'evaluation': {'horizon': None, 'stride': None, 'target': 'true',

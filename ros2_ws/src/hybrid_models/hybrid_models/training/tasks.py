@@ -134,6 +134,18 @@ class RecurrentTask(Task):
         alone.group = Group(device=self.group.device)
         return alone
 
+    @torch.no_grad()
+    def validation_forecasts(self, model: nn.Module) -> tuple[np.ndarray, ...]:
+        """Return (forecasts, targets, run index) of this rank's validation windows."""
+        horizon = self.cfg['validation']['horizon']
+        preds, targets, runs = [], [], []
+        for ri, t0 in self._my_chunks(*self.val_index):
+            w = gather_windows(self.val, ri, t0, self.cfg['window'], horizon)
+            preds.append(predict(model, w))
+            targets.append(w.z_target)
+            runs.append(ri)
+        return np.concatenate(preds), np.concatenate(targets), np.concatenate(runs)
+
     def validate(self, model: nn.Module, phase: dict) -> dict:
         """Multistep score (sum of per-state RMSE / std) and, in phase 1, teacher loss."""
         out = {'score': self.validation_errors(model).score(self.state_std_np)}

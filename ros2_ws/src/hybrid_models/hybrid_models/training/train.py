@@ -31,26 +31,31 @@ from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import CompositeModel, RegressionModel
 from hybrid_models.run_store import RowFile, RowWriter, build_split
-from hybrid_models.selection import PHYSICS_ALONE, choose, threshold_grid
+from hybrid_models.selection import (
+    PHYSICS_ALONE,
+    choose_schedule,
+    forecast_figures,
+    threshold_grid,
+)
 from hybrid_models.streaming import Moments, RowSample
 from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.distributed import Group, join, leave
 from hybrid_models.training.loop import BEST, LAST, REFERENCE_EPOCH, LoopState, fit
 from hybrid_models.training.tasks import RecurrentTask
 from hybrid_models.vehicle import VehicleSpec, load_vessel
-from vessel_datasets.format import read_dataset
+from vessel_datasets.format import Dataset, read_dataset
 
 MODEL_FILE = 'model.safetensors'
 
 
-def dataset_vessel(cfg: dict) -> VehicleSpec:
+def dataset_vessel(cfg: dict, ds: Dataset) -> VehicleSpec:
     """
-    Return the vessel of the config's dataset, or the config's vessel file when it names one.
+    Return the vessel of the dataset, or the config's vessel file when it names one.
 
     The file must have the dataset's vectors and rate; what else it says (its mirror
     image, its limits) may be newer than the dataset's copy, and wins.
     """
-    vessel = read_dataset(cfg['dataset']).vessel
+    vessel = ds.vessel
     if cfg.get('vessel'):
         given = load_vessel(cfg['vessel'])
         given.check_compatible(vessel, f'dataset {cfg["dataset"]}')
@@ -74,13 +79,13 @@ def uses_mirror(setting, spec: VehicleSpec) -> bool:
     return setting
 
 
-def check_windows(cfg: dict, spec: VehicleSpec) -> None:
+def check_windows(cfg: dict, spec: VehicleSpec, ds: Dataset) -> None:
     """Refuse, before any training, a split that cannot give a single forecast window."""
     t, e = cfg['training'], cfg['evaluation']
     needs = {'train': t['window'] + t['sequence_length'],
              'val': t['window'] + t['validation']['horizon'],
              'test': t['window'] + e['horizon']}
-    runs = read_dataset(cfg['dataset']).manifest['runs']
+    runs = ds.manifest['runs']
     for split, need in needs.items():
         lengths = [r['n_samples'] for r in runs if r['split'] == split]
         if split == 'test' and not lengths:
@@ -104,18 +109,20 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'a
     if cfg['dataset'] is None:
         raise ValueError('the config names no dataset (key "dataset" or --dataset)')
     # Everything that can refuse the dataset runs before anything is written.
-    spec = dataset_vessel(cfg)
+    ds = read_dataset(cfg['dataset'])
+    spec = dataset_vessel(cfg, ds)
     cfg = fill_from_vessel(cfg, spec)
-    check_windows(cfg, spec)
+    check_windows(cfg, spec, ds)
     uses_mirror(cfg['training']['mirror'], spec)
     group = join(device)
     try:
-        return _train(cfg, spec, Path(out_dir), resume, group)
+        return _train(cfg, spec, ds, Path(out_dir), resume, group)
     finally:
         leave(group)
 
 
-def _train(cfg: dict, spec: VehicleSpec, out_dir: Path, resume: bool, group: Group) -> dict:
+def _train(cfg: dict, spec: VehicleSpec, ds: Dataset, out_dir: Path, resume: bool,
+           group: Group) -> dict:
     tcfg = cfg['training']
     torch.set_num_threads(int(tcfg['threads']))
     torch.manual_seed(tcfg['seed'])
@@ -125,7 +132,7 @@ def _train(cfg: dict, spec: VehicleSpec, out_dir: Path, resume: bool, group: Gro
     t_start = time.monotonic()
     cache = cache_dir(cfg, out_dir)
     try:
-        return _train_cached(cfg, spec, out_dir, resume, group, cache, t_start)
+        return _train_cached(cfg, spec, ds, out_dir, resume, group, cache, t_start)
     finally:
         group.barrier()
         if group.local_rank == 0:
@@ -141,9 +148,8 @@ def cache_dir(cfg: dict, out_dir: Path) -> Path:
     return Path(tempfile.gettempdir()) / 'hybrid_models_cache' / key
 
 
-def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
+def _train_cached(cfg, spec, ds, out_dir, resume, group, cache, t_start) -> dict:
     tcfg = cfg['training']
-    ds = read_dataset(cfg['dataset'])
     # One process per machine writes the cache; the others stream the same statistics.
     writer = group.local_rank == 0
     if writer:
@@ -153,7 +159,7 @@ def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
                                  tcfg['seed'], writer, mirror and split == 'train')
               for split in ('train', 'val')}
     group.barrier()
-    base = {'dataset': {'path': str(cfg['dataset']), 'sha256': dataset_hash(cfg['dataset']),
+    base = {'dataset': {'path': str(cfg['dataset']), 'sha256': dataset_hash(ds),
                         'train_runs': [r.run_id for r in stores['train'].runs],
                         'val_runs': [r.run_id for r in stores['val'].runs],
                         'mirrored': mirror},
@@ -180,6 +186,9 @@ def _train_cached(cfg, spec, out_dir, resume, group, cache, t_start) -> dict:
         group.barrier()
         base.update(phys_info)
     model.to(group.device)
+    if isinstance(model, HybridModel) and tcfg['compiled_physics'] and \
+            group.device.type == 'cpu':
+        model.physical.compile()
     task = RecurrentTask(spec, stores['train'].runs, stores['val'].runs, tcfg, state_norm.std,
                          z_phy_train, z_phy_val, group=group)
     base['parameters'] = sum(p.numel() for p in model.parameters())
@@ -214,18 +223,18 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
     """
     Serve the best epoch at the threshold chosen on validation (``hybrid_models.selection``).
 
-    The model keeps the chosen threshold (its config's ``relative_threshold`` is the cap);
-    the returned record holds the figures of every candidate and of the physics alone.
+    The model keeps the chosen threshold or schedule (its config's ``relative_threshold``
+    is the cap); the returned record holds the figures of every candidate and of the
+    physics alone.
     """
     cap = model.relative_threshold
     grid = threshold_grid(tcfg['selection']['thresholds'], cap)
     std = task.state_std_np
 
-    def figures(threshold):
+    def figures(threshold) -> dict:
         with model.served_at(threshold):
-            errors = task.validation_errors(model)
-        return {'relative_threshold': threshold, 'score': errors.score(std),
-                'profile': errors.profile(model.spec)}
+            pred, true, runs = task.validation_forecasts(model)
+        return forecast_figures(pred, true, model.spec, std, runs)
 
     physics = figures(PHYSICS_ALONE)
     if best_epoch == REFERENCE_EPOCH:
@@ -233,11 +242,13 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
                   'reason': 'no epoch forecast the validation runs better than the physics '
                             'alone; the physics alone is served', 'candidates': []}
     else:
-        choice = choose([figures(t) for t in grid], physics)
+        choice = choose_schedule(figures, grid, physics, model.spec.dt,
+                                 tcfg['selection']['confidence'])
     model.set_threshold(choice['relative_threshold'])
     print(f"served threshold {choice['relative_threshold']}: {choice['reason']}",
           file=sys.stderr)
-    return {**choice, 'cap': cap, 'grid': grid, 'physics': physics,
+    kept = {k: v for k, v in physics.items() if k != 'per_forecast'}
+    return {**choice, 'cap': cap, 'grid': grid, 'physics': kept,
             'best_epoch': best_epoch}
 
 
