@@ -147,6 +147,8 @@ def test_a_certain_term_pruned_for_its_small_effect_is_still_reported(tmp_path, 
     [kept] = named.kept_out
     lo, hi = kept['ci95']
     assert kept['parameter'] == 'Xudot' and lo <= truth - nominal.parameter('Xudot') <= hi < 0
+    noise_lo, noise_hi = kept['ci95_noise']         # the bootstrap's alone, inside the widened
+    assert lo <= noise_lo < noise_hi <= hi
     assert kept['held_out_gain'] < SETTINGS.validation.min_improvement
     assert 'held-out predictions' in kept['why_kept_out']
     line = summary_line(named.status, named.records, named.not_checkable, kept_out=named.kept_out)

@@ -163,7 +163,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise ConfigError(f'unknown scenario {name!r} of vessel {args.vessel!r}')
         result = measure(args.vessel, args.scenarios, range(args.seeds), args.runs,
                          args.seconds, say=lambda m: print(m, file=sys.stderr, flush=True))
-    except (ConfigError, KeyError) as exc:
+    except ConfigError as exc:
         print(f'coverage: {exc}', file=sys.stderr)
         return 2
     out = Path(args.out)

@@ -118,6 +118,8 @@ def kept_out_records(ident: Identification, library: Library, nominal: Physics) 
         record = {'term': name, 'category': cand.category, 'kind': cand.kind,
                   'dof': cand.dofs, 'unit': cand.unit, 'description': cand.description,
                   'coefficient': info['coefficient'], 'ci95': list(info['ci95']),
+                  'ci95_noise': list(info['ci95_noise']),
+                  'heterogeneity': info['heterogeneity'],
                   'inclusion_probability': info['inclusion_probability'],
                   'held_out_gain': info['held_out_gain'], 'why_kept_out': info['why']}
         if cand.kind == 'parameter':

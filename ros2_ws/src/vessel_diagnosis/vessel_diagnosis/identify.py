@@ -666,7 +666,9 @@ class Identifier:
             p_final = float(probability[name])
             relevant = self.settings.validation.kept_out_share * self.library.absolute_scale(
                 self.library.by_name[name], self.nominal)
-            out[name] = {'coefficient': float(values[name]), 'ci95': ci,
+            noise = tuple(float(v) for v in np.percentile(boot[:, k], [2.5, 97.5]))
+            out[name] = {'coefficient': float(values[name]), 'ci95': ci, 'ci95_noise': noise,
+                         'heterogeneity': hetero.get(name),
                          'relevant_size': float(relevant),
                          'inclusion_probability': p_final,
                          'selected_probability': selected[name].inclusion_probability,
