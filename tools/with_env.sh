@@ -9,6 +9,5 @@ source "$ROOT/.venv/bin/activate"
 source "$ROOT/ros2_ws/install/setup.bash"
 export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 export ROS_LOG_DIR="${ROS_LOG_DIR:-$ROOT/ros2_ws/log/ros}"
-export PYTHONDONTWRITEBYTECODE=1
 cd "$ROOT"
 exec "$@"

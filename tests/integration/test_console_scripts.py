@@ -31,13 +31,25 @@ PROGRAMS = {
 }
 
 
+@pytest.fixture(scope='module')
+def helps():
+    """Start every program's --help at once (each imports its stack: seconds apiece)."""
+    started = {name: subprocess.Popen([str(installed_executable(package, name)), '--help'],
+                                      stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                      text=True)
+               for name, package in PROGRAMS.items()}
+    yield started
+    for popen in started.values():
+        popen.kill()
+        popen.communicate()
+
+
 @pytest.mark.parametrize('name', sorted(PROGRAMS))
-def test_installed_program_answers_help(name):
+def test_installed_program_answers_help(helps, name):
     assert (REPO / 'offline' / f'{name}.py').is_file()
-    exe = installed_executable(PROGRAMS[name], name)
-    done = subprocess.run([str(exe), '--help'], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stderr[-2000:]
-    assert done.stdout.startswith('usage:')
+    out, err = helps[name].communicate(timeout=240)
+    assert helps[name].returncode == 0, err[-2000:]
+    assert out.startswith('usage:')
 
 
 def test_every_thin_entry_point_is_listed():

@@ -50,6 +50,7 @@ def fouled(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow   # two hybrids trained on a simulated fouling campaign (about a minute)
 def test_the_same_hybrid_on_better_physics(fouled, capsys):
     out = fouled / 'results'
     result = compare(capsys, '--dataset', fouled / 'data', '--physics',

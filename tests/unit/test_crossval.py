@@ -130,3 +130,34 @@ def test_folds_by_kind_hold_out_each_kind_and_always_train_on_the_unmatched(toy,
         assert {ids['FREE_1'], ids['FREE_2']} <= set(f.train) | set(f.val)
     with pytest.raises(ValueError, match='needs at least 2'):
         make_folds(ds, tmp_path, None, fold_by='FREE')
+
+
+def test_two_physics_of_one_name_are_told_apart_by_their_model():
+    from hybrid_models.evaluation import physics_label
+
+    taken = set()
+    for owner in ('hybrid', 'hybrid, no mirror images'):
+        taken.add(physics_label('hyd physics', 'f' * 16, owner, taken))
+    assert taken == {'hyd physics', 'hyd physics (of hybrid, no mirror images)'}
+    # The same model's seeds fitted on other data: the fingerprint decides.
+    assert physics_label('hyd physics', '1774de' + '0' * 10, 'hybrid, no mirror images',
+                         taken) == 'hyd physics (of hybrid, no mirror images) [1774de]'
+
+
+def test_folds_validate_on_runs_long_enough_for_a_forecast(toy, tmp_path):
+    import copy
+
+    from hybrid_models.studies.crossval import make_folds
+    from vessel_datasets.format import Dataset, read_dataset
+
+    ds = read_dataset(toy)
+    manifest = copy.deepcopy(ds.manifest)
+    for entry in manifest['runs'][::2]:   # every other run too short to validate on
+        entry['n_samples'] = 100
+    ds = Dataset(ds.root, manifest)
+    lengths = {r['id']: r['n_samples'] for r in manifest['runs']}
+    for seed in range(4):
+        for fold in make_folds(ds, tmp_path / str(seed), 3, seed=seed, min_val_samples=200):
+            assert max(lengths[run] for run in fold.val) >= 200, (seed, fold.val)
+    with pytest.raises(ValueError, match='to validate on'):
+        make_folds(ds, tmp_path / 'x', 2, min_val_samples=261)

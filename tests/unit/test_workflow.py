@@ -37,7 +37,7 @@ def test_each_fold_is_diagnosed_without_its_test_runs_and_its_physics_retrained(
         physics_file(out / 'augmented_physics.yaml', PRO_TERMS)
         (out / 'findings.json').write_text(json.dumps(
             {'augmented_physics': {'physics': 'augmented_physics.yaml'}}))
-        print('found: a stand-in finding')
+        print(f'found: a stand-in finding ({out / "report.md"})')   # as diagnose says
         return 0
 
     monkeypatch.setattr(cli_workflow.diagnose_cli, 'main', diagnose)
@@ -63,5 +63,6 @@ def test_each_fold_is_diagnosed_without_its_test_runs_and_its_physics_retrained(
         assert 'augmented_physics.yaml' in hybrid.read_text()
     report = (out / 'report.md').read_text()
     assert 'a stand-in finding' in report and 'Do no harm' in report
+    assert f'{out}/' not in report   # the folds' reports are named relative to it
     assert augmented_physics_file(out / 'folds' / 'fold0' / 'diagnosis').name == \
         'augmented_physics.yaml'

@@ -155,6 +155,19 @@ def physics_identity(physical) -> tuple[str, str]:
     return digest.hexdigest()[:16], name
 
 
+def physics_label(name: str, fingerprint: str, owner: str, taken: set[str]) -> str:
+    """
+    Label a physics row distinctly from the ``taken`` labels.
+
+    Two physics of one name (a regression fitted on other data) are told apart by the
+    model whose physics it is (``owner``), and by fingerprint only if that is not enough.
+    """
+    for label in (name, f'{name} (of {owner})'):
+        if label not in taken:
+            return label
+    return f'{name} (of {owner}) [{fingerprint[:6]}]'
+
+
 def over_seeds(values: list):
     """
     Mean and standard deviation over seeds of equally shaped figures (nested dicts/lists).

@@ -30,9 +30,9 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 import math
+from statistics import NormalDist
 
 import numpy as np
-from scipy.stats import norm
 
 from hybrid_models.metrics import StepErrors, trajectory_errors
 
@@ -90,7 +90,7 @@ def harms(profile: dict, physics: dict, until_step: int | None = None,
     means worse beyond the sampling error (module docstring); otherwise any worse mean
     counts. Empty: the profile is admissible. A diverged figure (None) is always worse.
     """
-    z = None if paired is None or confidence is None else float(norm.ppf(confidence))
+    z = None if paired is None or confidence is None else NormalDist().inv_cdf(confidence)
     worse = []
     figures = [('position', 'position', profile['position_m'], physics['position_m'])]
     if 'normalized' in profile and 'normalized' in physics:

@@ -30,7 +30,12 @@ import time
 import torch
 
 from hybrid_models.checkpoint import CheckpointError
-from hybrid_models.cli.crossval import add_plan_options, report_text, run_plan
+from hybrid_models.cli.crossval import (
+    add_plan_options,
+    min_val_samples,
+    report_text,
+    run_plan,
+)
 from hybrid_models.studies.crossval import make_folds, write_results
 from vessel_datasets.format import DatasetError, read_dataset
 from vessel_diagnosis import cli as diagnose_cli
@@ -71,7 +76,7 @@ def main(argv=None) -> int:
         dataset = read_dataset(args.dataset)
         nominal = nominal_physics(dataset, args.physics)
         folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
-                           args.fold_by)
+                           args.fold_by, min_val_samples(dataset.vessel, args))
         diagnoses = {}
         for fold in folds:
             say(f'diagnosing fold {fold.index} ({len(fold.train)} training runs, judged on '
@@ -97,7 +102,8 @@ def main(argv=None) -> int:
     result['diagnoses'] = diagnoses
     result['nominal_physics'] = nominal
     write_results(args.out, result, dataset.vessel)
-    found = [f"- fold {k}: {d['summary'] or 'no summary'}"
+    # The report sits in --out: the folds' own reports are named relative to it.
+    found = [f"- fold {k}: {(d['summary'] or 'no summary').replace(f'{args.out}/', '')}"
              + ('' if d['augmented'] else ' (no augmented physics: the hybrid on augmented '
                                           'physics is the one on nominal physics)')
              for k, d in diagnoses.items()]

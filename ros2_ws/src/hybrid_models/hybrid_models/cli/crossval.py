@@ -28,6 +28,7 @@ import time
 import torch
 
 from hybrid_models.checkpoint import CheckpointError
+from hybrid_models.data import evaluation_protocol
 from hybrid_models.studies.crossval import (
     ModelPlan,
     evaluate_plan,
@@ -85,6 +86,12 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                             help=f"{what} of test forecasts (samples; default: the vessel's)")
 
 
+def min_val_samples(vessel, args) -> int:
+    """Return the samples a validating run needs: one forecast's window and horizon."""
+    window, horizon, _ = evaluation_protocol(vessel, args.window, args.horizon, 1)
+    return window + horizon
+
+
 def run_plan(args, models: list[ModelPlan], folds, say) -> dict | None:
     """Train and evaluate a plan; return the results, None when a training failed."""
     seeds = list(range(args.seeds))
@@ -132,7 +139,7 @@ def main(argv=None) -> int:
         dataset = read_dataset(args.dataset)
         spec = dataset.vessel
         folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
-                           args.fold_by)
+                           args.fold_by, min_val_samples(dataset.vessel, args))
         models = [ModelPlan(label, Path(config).resolve(), args.set)
                   for label, config in args.model]
         result = run_plan(args, models, folds, say)

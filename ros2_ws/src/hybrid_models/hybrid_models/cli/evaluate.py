@@ -34,6 +34,7 @@ from hybrid_models.evaluation import (
     PhysicsOnly,
     evaluate_model,
     physics_identity,
+    physics_label,
     residual_share,
     seed_row,
     test_windows,
@@ -113,7 +114,8 @@ def main(argv=None) -> int:
         if args.physics_only and isinstance(members[0][0], HybridModel):
             # Each seed against its own physics (seeds on other data fit other physics).
             known = len(physics_rows)
-            own = [physics_rows[_physics_row(m, windows, spec, physics_rows)] for m in members]
+            own = [physics_rows[_physics_row(m, label, windows, spec, physics_rows)]
+                   for m in members]
             rows += list(physics_rows.values())[known:]
             row['physics'] = sorted({p['label'] for p in own})
             row['harms_vs_physics'] = [
@@ -188,13 +190,13 @@ def _model_row(label: str, members: list, windows, spec, horizon: int):
     return row, evaluated[0]
 
 
-def _physics_row(member, windows, spec, physics_rows: dict) -> str:
+def _physics_row(member, owner: str, windows, spec, physics_rows: dict) -> str:
     """Add the row of a hybrid's physics alone unless it has one; return its fingerprint."""
     model, cfg = member
     fingerprint, name = physics_identity(model.physical)
     if fingerprint not in physics_rows:
-        taken = {row['label'] for row in physics_rows.values()}
-        label = name if name not in taken else f'{name} [{fingerprint[:6]}]'
+        label = physics_label(name, fingerprint, owner,
+                              {row['label'] for row in physics_rows.values()})
         ev = evaluate_model(label, PhysicsOnly(model.physical), windows, spec,
                             np.asarray(cfg['normalization']['state']['std']))
         physics_rows[fingerprint] = {'label': label, 'metrics': ev.metrics,

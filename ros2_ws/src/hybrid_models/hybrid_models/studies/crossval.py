@@ -30,7 +30,7 @@ import numpy as np
 from hybrid_models import report
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
-from hybrid_models.evaluation import PhysicsOnly, physics_identity, seed_row
+from hybrid_models.evaluation import PhysicsOnly, physics_identity, physics_label, seed_row
 from hybrid_models.metrics import StepErrors, forecast_metrics
 from hybrid_models.models import predict
 from hybrid_models.nets import HybridModel
@@ -70,7 +70,8 @@ class ModelPlan:
 
 
 def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
-               val_fraction: float = 0.1, fold_by: str | None = None) -> list[Fold]:
+               val_fraction: float = 0.1, fold_by: str | None = None,
+               min_val_samples: int = 0) -> list[Fold]:
     """
     Write the fold views under ``out/folds`` and return them.
 
@@ -78,7 +79,9 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
     shuffled with ``seed`` and dealt into ``folds`` test groups. ``fold_by`` (a regular
     expression) instead makes one fold per distinct match in the recordings' names, e.g.
     one per kind of manoeuvre; recordings it does not match always train. Of each fold's
-    other recordings, ``val_fraction`` (at least one) validate and the rest train.
+    other recordings, ``val_fraction`` (at least one) validate and the rest train; a
+    validating recording needs a run of ``min_val_samples`` (a window and its horizon:
+    training selects on validation forecasts), so shorter ones train.
     """
     if folds is None and fold_by is None:
         splits = [{name: dataset.run_ids(name) for name in ('train', 'val', 'test')}]
@@ -94,6 +97,7 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
         for k, test in enumerate(groups):
             rest = [r for r in order if r not in test]
             rest = [rest[i] for i in np.random.default_rng([seed, k]).permutation(len(rest))]
+            rest = _long_enough_first(rest, recordings, dataset, min_val_samples, k)
             n_val = max(1, round(val_fraction * len(rest)))
             runs = {name: sorted(run for rec in recs for run in recordings[rec])
                     for name, recs in (('test', test), ('val', rest[:n_val]),
@@ -105,6 +109,19 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
         resplit(dataset, path, split, note)
         out_folds.append(Fold(k, path, *(tuple(split[s]) for s in ('train', 'val', 'test'))))
     return out_folds
+
+
+def _long_enough_first(names: list[str], recordings: dict[str, list[str]], dataset: Dataset,
+                       min_samples: int, fold: int) -> list[str]:
+    """Reorder ``names`` so recordings with a run of ``min_samples`` come first."""
+    samples = {r['id']: int(r['n_samples']) for r in dataset.manifest['runs']}
+    longest = {name: max(samples[run] for run in recordings[name]) for name in names}
+    long = [name for name in names if longest[name] >= min_samples]
+    if not long:
+        raise ValueError(f'fold {fold}: no recording outside its test runs has a run of '
+                         f'{min_samples} samples (a forecast window) to validate on; use '
+                         f'fewer folds or a shorter window or horizon')
+    return long + [name for name in names if longest[name] < min_samples]
 
 
 def _test_groups(order: list[str], folds: int | None, fold_by: str | None,
@@ -194,8 +211,8 @@ def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
             'label': m.label, 'metrics': metrics[0]}
         row['per_seed_metrics'] = metrics
         if (m.label, seeds[0]) in physics:
-            own = [_physics_pooled(physics[(m.label, s)], true, spec, physics_rows, curves,
-                                   scale) for s in seeds]
+            own = [_physics_pooled(physics[(m.label, s)], m.label, true, spec, physics_rows,
+                                   curves, scale) for s in seeds]
             row['physics'] = sorted({p['label'] for p in own})
             row['harms_vs_physics'] = [harms(mm['profile'], p['metrics']['profile'])
                                        for mm, p in zip(metrics, own, strict=True)]
@@ -213,14 +230,14 @@ def _position_curve(pred: np.ndarray, true: np.ndarray, spec) -> list[float]:
     return (errors.position / errors.count).tolist()
 
 
-def _physics_pooled(per_fold: list, true: np.ndarray, spec, physics_rows: dict,
-                    curves: dict, scale: np.ndarray) -> dict:
+def _physics_pooled(per_fold: list, owner: str, true: np.ndarray, spec,
+                    physics_rows: dict, curves: dict, scale: np.ndarray) -> dict:
     """Return the pooled row of one seed's physics (per fold), made once per physics."""
     key = tuple(fp for fp, _, _ in per_fold)
     if key not in physics_rows:
         name = per_fold[0][1]
-        taken = {row['label'] for row in physics_rows.values()}
-        label = name if name not in taken else f'{name} [{key[0][:6]}]'
+        label = physics_label(name, key[0], owner,
+                              {row['label'] for row in physics_rows.values()})
         pred = np.concatenate([forecast() for _, _, forecast in per_fold])
         physics_rows[key] = {'label': label,
                              'metrics': forecast_metrics(pred, true, spec, state_std=scale),
