@@ -78,7 +78,9 @@ def test_the_otter_obeys_commands_in_its_own_joint_names(launcher, ros_node):
     assert spin_until(ros_node, turning, 20), odom[-1].twist.twist
 
 
-@pytest.fixture(scope='module', params=sorted(JOINTS))
+# The Otter's case runs by default; the KVLCC2's (the same path, a slower training) is slow.
+@pytest.fixture(scope='module', params=[pytest.param('kvlcc2_hsva', marks=pytest.mark.slow),
+                                        'otter'])
 def trained(request, tmp_path_factory):
     """Return (vessel, checkpoint) of a smoke hybrid trained on the simulator's data."""
     from hybrid_models.training.config import load_config

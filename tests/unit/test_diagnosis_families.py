@@ -86,6 +86,7 @@ def test_otter_weak_thruster_is_the_share_it_lost(identified):
     assert record['term'] == 'port_thrust' and lo <= loss <= hi, record
 
 
+@pytest.mark.slow       # the Otter's default case is the weak thruster
 def test_otter_current_is_estimated_per_run(identified):
     _, named, out = identified('otter', 'current')
     record = _only(named, 'current')
