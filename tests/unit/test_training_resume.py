@@ -72,3 +72,39 @@ def test_resume_refuses_a_foreign_last_checkpoint(tmp_path, content):
     cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'])
     with pytest.raises(CheckpointError, match='not a hybrid_models checkpoint'):
         train(cfg, tmp_path / 'run', resume=True)
+
+
+def test_a_training_subprocess_ends_when_the_tool_that_started_it_is_killed(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    # A stand-in tool: starts a long child the way train_job does, then is killed.
+    tool = subprocess.Popen([sys.executable, '-c', (
+        'import subprocess, sys\n'
+        'from hybrid_models.training.jobs import die_with_parent\n'
+        'child = subprocess.Popen(["sleep", "60"], preexec_fn=die_with_parent)\n'
+        'print(child.pid, flush=True)\n'
+        'child.wait()\n')], stdout=subprocess.PIPE, text=True)
+    child = int(tool.stdout.readline())
+    tool.send_signal(signal.SIGKILL)
+    tool.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            break
+        # A child that died but was not yet reaped by init counts as gone.
+        try:
+            with open(f'/proc/{child}/stat') as stat:
+                if stat.read().split()[2] == 'Z':
+                    break
+        except FileNotFoundError:
+            break
+        time.sleep(0.05)
+    else:
+        os.kill(child, signal.SIGKILL)
+        raise AssertionError('the training child outlived the tool that started it')

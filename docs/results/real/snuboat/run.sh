@@ -35,4 +35,6 @@ for study in heldout bykind; do
   mkdir -p "$OUT/$study"
   cp "$WORK/snuboat_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
     "$OUT/$study/"
+  # The work folder is the user's: named, not spelled out, in the committed files.
+  sed -i "s#$WORK/#\$WORK/#g" "$OUT/$study/report.md" "$OUT/$study/results.json"
 done

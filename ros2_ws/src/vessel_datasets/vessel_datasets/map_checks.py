@@ -303,24 +303,38 @@ def consistency_checks(table: pd.DataFrame, topic_map: TopicMap, ctx: Context
 
 def _lags(t, col, phi, ctx: Context, w_vel: int, w_head: int, b_head, moving,
           rate_hz: float) -> dict[str, Any]:
-    """Cost curves of the three lags (``timing``), or None where not measurable."""
+    """
+    Cost curves of the three lags (``timing``); a lag is left out where not measurable.
+
+    Under the floors of the other checks (a vessel slower than ``MIN_SPEED``, a heading
+    turning slower than ``MIN_RATE``) the curves would match noise against noise: a
+    still vessel's lag is not measured rather than found by chance.
+    """
     ks = timing.shifts(rate_hz)
     out: dict[str, Any] = {}
-    if 'track' not in ctx.derived:
-        speed_v = _smooth(np.hypot(col['u'], col['v'] * np.cos(phi)), w_vel)
+    speed_v = _smooth(np.hypot(col['u'], col['v'] * np.cos(phi)), w_vel)
+    if 'track' not in ctx.derived and _rms(speed_v) >= MIN_SPEED:
         speed_p = _smooth(np.hypot(np.gradient(col['x'], t), np.gradient(col['y'], t)),
                           w_vel)
         out['position'] = timing.cost_curve(speed_v, speed_p, ks)
-    # The heading the velocity implies: the track's course less the body drift angle.
-    implied = np.arctan2(b_head[1], b_head[0]) - np.arctan2(_smooth(col['v'], w_head),
-                                                            _smooth(col['u'], w_head))
-    implied = np.where(moving, implied, np.nan)
-    out['heading'] = timing.cost_curve(implied, col['psi'], ks, angle=True)
-    if 'r' not in ctx.derived:
-        w = max(w_head, 1)
-        out['yaw_rate'] = timing.cost_curve(_smooth(np.gradient(col['psi'], t), w),
-                                            _smooth(col['r'] * np.cos(phi), w), ks)
+    if _rms(np.hypot(*b_head)[moving]) >= MIN_SPEED:
+        # The heading the velocity implies: the track's course less the body drift angle.
+        implied = np.arctan2(b_head[1], b_head[0]) - np.arctan2(_smooth(col['v'], w_head),
+                                                                _smooth(col['u'], w_head))
+        implied = np.where(moving, implied, np.nan)
+        out['heading'] = timing.cost_curve(implied, col['psi'], ks, angle=True)
+    w = max(w_head, 1)
+    heading_rate = _smooth(np.gradient(col['psi'], t), w)
+    if 'r' not in ctx.derived and _rms(heading_rate) >= MIN_RATE:
+        out['yaw_rate'] = timing.cost_curve(heading_rate, _smooth(col['r'] * np.cos(phi), w),
+                                            ks)
     return out
+
+
+def _rms(x: np.ndarray) -> float:
+    """Return the root mean square of the finite values (0 for none)."""
+    x = x[np.isfinite(x)]
+    return float(np.sqrt(np.mean(x * x))) if len(x) else 0.0
 
 
 def _timing(curves: Mapping[str, Any], ctx: Context, rate_hz: float,
@@ -445,26 +459,28 @@ def _course(stats: dict, labels: Mapping[str, str]) -> Check:
 
 def _turn(t, col, b, moving, w: int, labels: Mapping[str, str]) -> Check:
     """Check that the heading turns with the track: course rate against d(psi)/dt."""
-    name = 'heading rate vs course rate'
-    expected = f'slope {1 / TURN_RATIO:.2g}..{TURN_RATIO:g}, corr >= {TURN_MIN_CORR:g}'
     # The course's rate from the track's velocity and acceleration (no unwrapping), the
     # noisy side: regressed on the heading rate; both zero where the vessel is still.
     speed_sq = np.maximum(b[0] ** 2 + b[1] ** 2, 1e-12)
     course_rate = (b[0] * np.gradient(b[1], t) - b[1] * np.gradient(b[0], t)) / speed_sq
     a = _smooth(np.where(moving, course_rate, 0.0), w)
     heading_rate = _smooth(np.where(moving, np.gradient(col['psi'], t), 0.0), w)
-    stats = {**_sums(a, heading_rate), 'kind': 'turn'}
+    return _judge_turn({**_sums(a, heading_rate), 'kind': 'turn'}, labels)
+
+
+def _judge_turn(stats: dict, labels: Mapping[str, str], judge: bool = False) -> Check:
+    """
+    Judge the turn over all runs only (``judge``): a zig-zag's drift swings widely.
+
+    Skipped where the heading turns too little (each run, and all runs pooled: every run
+    of a still vessel skipped leaves nothing to regress).
+    """
+    name = 'heading rate vs course rate'
+    expected = f'slope {1 / TURN_RATIO:.2g}..{TURN_RATIO:g}, corr >= {TURN_MIN_CORR:g}'
     if not stats['n'] or math.sqrt(stats['sbb'] / stats['n']) < MIN_RATE:
         return Check(name, None, expected, True, None,
                      f'skipped: the heading turns slower than {math.degrees(MIN_RATE):g} '
                      f'deg/s', stats)
-    return _judge_turn(stats, labels)
-
-
-def _judge_turn(stats: dict, labels: Mapping[str, str], judge: bool = False) -> Check:
-    """Judge the turn over all runs only (``judge``): a zig-zag's drift swings widely."""
-    name = 'heading rate vs course rate'
-    expected = f'slope {1 / TURN_RATIO:.2g}..{TURN_RATIO:g}, corr >= {TURN_MIN_CORR:g}'
     slope, corr = _regression(stats)
     figures = f'slope {slope:.3f}, corr {corr:.3f}'
     if 1 / TURN_RATIO <= slope <= TURN_RATIO and corr >= TURN_MIN_CORR:

@@ -6,7 +6,9 @@ already finished, continued from its last epoch when a run was killed) and retur
 summary; its output goes to ``out/train.log``. Tools run several at once in a thread pool.
 """
 
+import ctypes
 from pathlib import Path
+import signal
 import subprocess
 import sys
 import time
@@ -16,6 +18,19 @@ from hybrid_models.training import MODEL_FILE
 
 # A process per training: its memory is returned when it ends, and a kill loses only it.
 TRAIN_MODULE = 'hybrid_models.cli.train'
+PR_SET_PDEATHSIG = 1   # prctl(2): the signal a child gets when the thread that made it dies
+
+
+def die_with_parent() -> None:
+    """
+    Make the calling (child) process receive SIGTERM when its parent dies (Linux).
+
+    A tool stopped by a signal, or killed, must not leave trainings running on: they
+    would compete for the cores and write into runs a restarted tool trains again. A
+    training stopped this way resumes from its last epoch. Used as ``preexec_fn``.
+    """
+    if sys.platform.startswith('linux'):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
 
 
 def finished(run_dir: Path) -> bool:
@@ -37,7 +52,8 @@ def train_job(label: str, config: Path, overrides: list[str], out: Path) -> dict
     out.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
     with open(out / 'train.log', 'a') as log:
-        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT).returncode
+        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT,
+                            preexec_fn=die_with_parent).returncode
     status = 'ok' if rc == 0 else f'failed (exit {rc}, see {out / "train.log"})'
     return {'label': label, 'status': status, 'dir': str(out),
             'seconds': round(time.monotonic() - start, 1)}
