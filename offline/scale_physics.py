@@ -10,7 +10,7 @@ scales how); ``ros2 run vessel_physics scale_physics`` is the same program insta
 
 import sys
 
-from vessel_physics.scale_physics import main
+from vessel_physics.mmg.scale import main
 
 if __name__ == '__main__':
     sys.exit(main())

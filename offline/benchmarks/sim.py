@@ -11,8 +11,8 @@ from pathlib import Path
 import resource
 import time
 
-from vessel_physics.config import load_config
-from vessel_physics.simulator import Simulator
+from vessel_physics.simulation.config import load_simulation
+from vessel_physics.simulation.simulator import Simulator
 
 GOAL_WALL_S = 60.0
 GOAL_RATIO = 5760.0
@@ -32,7 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> dict:
     """Run the batch once and return the figures and goals."""
-    cfg = load_config(args.config)
+    cfg = load_simulation(args.config)
     seconds = args.hours * 3600.0
     start = time.perf_counter()
     sim = Simulator(cfg, n_runs=args.runs, seed=args.seed)

@@ -28,8 +28,9 @@ class Inputs:
 
     def window_until(self, t_end, window):
         """Return the window a predictor with these inputs assembles at t_end."""
-        from hybrid_predictor.input_window import InputWindow, channel_reader
+        from hybrid_predictor.input_window import InputWindow
         from vessel_datasets.topic_map import topic_map_for
+        from vessel_datasets.topic_messages import channel_reader
         from vessel_description import load_vessel
         from vessel_ros_bridge import messages as m
 

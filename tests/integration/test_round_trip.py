@@ -32,8 +32,8 @@ def test_node_to_bag_to_dataset_matches_the_batch_simulator(launcher, ros_node, 
     from vessel_datasets.bag_source import find_bags
     from vessel_datasets.readers.bags import convert_bag
     from vessel_datasets.topic_map import topic_map_for
-    from vessel_physics.config import load_config
-    from vessel_physics.simulator import Simulator
+    from vessel_physics.simulation.config import load_simulation as load_config
+    from vessel_physics.simulation.simulator import Simulator
 
     bag_dir = tmp_path / 'bag'
     recorder = launcher.start_script(RECORD, '--out', str(bag_dir), name='record')

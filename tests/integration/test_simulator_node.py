@@ -68,8 +68,8 @@ def test_publishes_state_actuators_and_wind_in_ros_frames(launcher, ros_node):
 def test_node_reproduces_the_batch_run_of_the_same_seed(launcher, ros_node):
     from nav_msgs.msg import Odometry
 
-    from vessel_physics.config import load_config
-    from vessel_physics.simulator import Simulator
+    from vessel_physics.simulation.config import load_simulation as load_config
+    from vessel_physics.simulation.simulator import Simulator
     from vessel_ros_bridge.messages import state_from_odometry
 
     odom = Collector(ros_node, Odometry, '/vessel/odom')

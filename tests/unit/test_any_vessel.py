@@ -25,8 +25,8 @@ from vessel_datasets import bag_to_dataset
 from vessel_datasets.format import read_dataset
 from vessel_description import load_vessel, parse_vessel
 from vessel_physics import frames
-from vessel_physics.params import load_named_vessel
-from vessel_physics.terms import unit_thrust
+from vessel_physics.patrol.forces import unit_thrust
+from vessel_physics.physics_file import load_physics
 
 REPO = Path(__file__).resolve().parents[2]
 RATE_HZ, RUN_S = 10.0, 180.0
@@ -192,7 +192,7 @@ def test_a_window_longer_than_every_run_is_refused_before_training(skiff, tmp_pa
 
 def test_physics_without_hull_parameters_is_refused():
     skiff = parse_vessel(VESSEL)
-    with pytest.raises(ValueError, match="needs hull parameters, and vessel 'skiff'"):
+    with pytest.raises(ValueError, match="needs physics, and vessel 'skiff' names none"):
         build_physical({'kind': 'min'}, skiff)
     with pytest.raises(ValueError, match='use a regression physics'):
         build_physical({'kind': 'pro', 'params': 'nominal_vessel'}, skiff)
@@ -201,7 +201,7 @@ def test_physics_without_hull_parameters_is_refused():
 
 
 def test_reversing_thrust_pulls_astern():
-    params = load_named_vessel('nominal_vessel')
+    params = load_physics('nominal_vessel').params
     ahead = unit_thrust(np.array(2.0), 0.0, np.array(5.0), np.array(0.0), params)
     astern = unit_thrust(np.array(2.0), 0.0, np.array(-5.0), np.array(0.0), params)
     assert ahead > 0 and astern < 0

@@ -4,7 +4,8 @@ import pytest
 
 from ship_sim_node.command_gate import CommandGate, CommandLimits
 
-LIMITS = CommandLimits(shaft_max=100.0, rudder_max=0.5)
+LIMITS = CommandLimits({'n': (0.0, 100.0), 'delta_port': (-0.5, 0.5),
+                        'delta_stbd': (-0.5, 0.5)})
 
 
 def test_a_command_holds_until_its_timeout_then_the_operator_resumes():

@@ -87,7 +87,7 @@ def test_the_same_hybrid_on_better_physics(fouled, capsys):
 
 
 @pytest.mark.parametrize('args, code, words', [
-    (['--physics', 'a=missing.yaml', 'b=missing.yaml'], 1, 'cannot read physics file'),
+    (['--physics', 'a=missing.yaml', 'b=missing.yaml'], 1, "missing.yaml': no such file"),
     (['--physics', 'only=x.yaml'], 2, 'at least two physics'),
     (['--physics', 'noequals', 'b=x.yaml'], 2, 'LABEL=FILE'),
 ])

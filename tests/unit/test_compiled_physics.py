@@ -9,6 +9,7 @@ from vessel_description import load_vessel
 
 KVLCC2 = load_vessel('kvlcc2_hsva')
 PATROL = load_vessel('patrol_boat')
+OTTER = load_vessel('otter')
 
 
 def gradients(spec, physical, z, c, compiled: bool):
@@ -32,12 +33,14 @@ def gradients(spec, physical, z, c, compiled: bool):
     (KVLCC2, {'kind': 'mmg', 'substeps': 1}),
     (PATROL, {'kind': 'min', 'substeps': 2}),
     (PATROL, {'kind': 'lin'}),
+    (OTTER, {'kind': 'physics', 'physics': 'otter_fossen.yaml', 'substeps': 2}),
 ])
 def test_compiled_physics_gives_autograd_forecasts_and_gradients(spec, physical):
     rng = np.random.default_rng(1)
     base = np.array([1.0, 0.05, 0.01, 0.02, 0.03][:spec.n_state]) if spec.has_roll else \
         np.array([1.0, 0.02, 0.005])
-    controls = {'kvlcc2_hsva': [64.0, 0.2], 'patrol_boat': [70.0, 0.05, 0.05, 5.0, 0.6, 0.8]}
+    controls = {'kvlcc2_hsva': [64.0, 0.2], 'patrol_boat': [70.0, 0.05, 0.05, 5.0, 0.6, 0.8],
+                'otter': [60.0, 50.0]}
     zw = base + 0.01 * rng.standard_normal((4, 10, spec.n_state))
     cw = np.asarray(controls[spec.name]) * (1 + 0.05 * rng.standard_normal((4, 10,
                                                                              spec.n_control)))

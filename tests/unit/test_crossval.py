@@ -88,7 +88,7 @@ def physics_file(tmp_path, name, terms):
 def test_evaluate_gives_each_distinct_physics_its_row_and_seeds_one_row(toy, tmp_path):
     from hybrid_models.cli import evaluate
     from hybrid_models.training import load_config, train
-    from vessel_physics.terms import PRO_TERMS, SIMULATOR_TERMS
+    from vessel_physics.patrol import PRO_TERMS, SIMULATOR_TERMS
     files = {'nominal': physics_file(tmp_path, 'nominal', list(SIMULATOR_TERMS)),
              'reduced': physics_file(tmp_path, 'reduced', list(PRO_TERMS))}
     runs = []

@@ -7,18 +7,24 @@ spectrum) and identified with the nominal physics that lacks
 the effect. The full-size proof with held-out improvements is test_diagnosis_proof.py.
 """
 
+import copy
 import json
 
 import pytest
 
+from vessel_description import load_vessel
+from vessel_diagnosis import scenarios
+from vessel_diagnosis.findings import summary_line
 from vessel_diagnosis.library import load_library
 from vessel_diagnosis.pipeline import diagnose, name_missing_physics
 from vessel_diagnosis.recordings import load_recordings
 from vessel_diagnosis.scenarios import load_scenario, simulate_scenario
 from vessel_diagnosis.settings import load_settings
-from vessel_physics.augmented import load_physics
+from vessel_physics.patrol import FAMILY
+from vessel_physics.physics_file import load_physics
 
 SMALL = {'waves': {'components': 12}}          # a coarser sea: faster, same physics
+SHIP = load_vessel('patrol_boat')
 SETTINGS = load_settings(overrides={'selection': {'bootstrap': 50, 'rounds': 2}})
 
 
@@ -32,7 +38,8 @@ def identified(tmp_path_factory):
                                     seed=11, overrides=SMALL)
             scenario = load_scenario(name)
             cache[name] = (scenario, name_missing_physics(
-                load_recordings([out]), scenario.nominal, SETTINGS, load_library()), out)
+                load_recordings([out]), scenario.nominal, SETTINGS, load_library(None, FAMILY),
+                SHIP), out)
         return cache[name][:2]
     run.data = lambda name: cache[name][2]
     return run
@@ -75,7 +82,7 @@ def test_constant_orders_cannot_be_diagnosed(identified):
     assert named.status == scenario.status == 'insufficient_excitation'
     assert named.records == []
     assert {'propulsion', 'wind'} <= set(named.not_checkable)
-    assert named.signals['rudder_deg']['std_within_runs'] < 0.1   # what the report says
+    assert named.signals['delta_port_rad']['std_within_runs'] < 0.002   # what the report says
 
 
 FINDING_FIELDS = {'dof', 'term', 'category', 'coefficient', 'unit', 'ci95',
@@ -90,7 +97,7 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
         'selection': {'bootstrap': 50, 'rounds': 2},
         # 6-minute runs: forecasts short enough to fit after the calibration span, so that
         # the held-out forecasts can show that the augmented physics earns its file.
-        'evaluation': {'calibration_s': 60, 'horizon': 200, 'stride': 40},
+        'evaluation': {'calibration_s': 60, 'horizon_s': 200, 'stride_s': 40},
         'excitation': {'min_duration_s': 600}})
     result = diagnose([data], data / 'nominal_physics.yaml', tmp_path, settings)
     on_disk = json.loads((tmp_path / 'findings.json').read_text())
@@ -122,3 +129,27 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
     for figure in ('locate_force_maps.png', 'locate_multistep_maps.png', 'locate_windows.png',
                    'candidates.png', 'before_after.png'):
         assert (tmp_path / figure).stat().st_size > 10_000
+
+
+def test_a_certain_term_pruned_for_its_small_effect_is_still_reported(tmp_path, monkeypatch):
+    """Twice the nominal surge added mass: certain, yet forecasts barely change."""
+    nominal = load_scenario('control').nominal
+    truth = 2.0 * nominal.parameter('Xudot')
+    data = copy.deepcopy(scenarios.load_scenario_file())
+    data['vessels']['patrol_boat']['scenarios']['heavy_surge'] = {
+        'description': 'twice the surge added mass', 'truth_parameters': {'Xudot': truth}}
+    monkeypatch.setattr(scenarios, 'load_scenario_file', lambda: data)
+    out = simulate_scenario('heavy_surge', tmp_path, runs=6, hours=0.1, seed=11,
+                            overrides=SMALL)
+    named = name_missing_physics(load_recordings([out]), nominal, SETTINGS,
+                                 load_library(None, FAMILY), SHIP)
+    assert named.status == 'findings' and named.records == []
+    [kept] = named.kept_out
+    lo, hi = kept['ci95']
+    assert kept['parameter'] == 'Xudot' and lo <= truth - nominal.parameter('Xudot') <= hi < 0
+    noise_lo, noise_hi = kept['ci95_noise']         # the bootstrap's alone, inside the widened
+    assert lo <= noise_lo < noise_hi <= hi
+    assert kept['held_out_gain'] < SETTINGS.validation.min_improvement
+    assert 'held-out predictions' in kept['why_kept_out']
+    line = summary_line(named.status, named.records, named.not_checkable, kept_out=named.kept_out)
+    assert 'kept out of the augmented physics' in line and 'added_mass (Xudot' in line

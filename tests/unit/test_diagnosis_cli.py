@@ -73,7 +73,7 @@ def _bag_without(path, topic):
 def test_recording_without_the_wind_topic_is_refused(capsys, tmp_path):
     bag = _bag_without(tmp_path / 'bag', '/vessel/wind')
     code, _, err = run(capsys, '--recordings', str(bag), '--physics', 'patrol_vessel.yaml',
-                       '--out', str(tmp_path / 'out'), '--quiet')
+                       '--vessel', 'patrol_boat', '--out', str(tmp_path / 'out'), '--quiet')
     assert code == EXIT_INPUT
     assert err.startswith(f'diagnose.py: error: {bag}: cannot convert the recording: ')
     assert 'needs /vessel/wind' in err and err.count('\n') == 1
@@ -98,3 +98,26 @@ def test_too_short_recordings_are_explained(capsys, tmp_path):
     result = json.loads((out / 'findings.json').read_text())
     assert result['status'] == 'insufficient_excitation' and result['findings'] == []
     assert 'Cannot diagnose' in (out / 'report.md').read_text()
+
+
+def test_one_nan_in_one_run_is_one_line_not_a_traceback(capsys, tmp_path):
+    dataset = _short_dataset(tmp_path, 2000)
+    table = pd.read_parquet(dataset / 'runs' / 'trial.parquet')
+    table.loc[700, 'v'] = np.nan
+    table.to_parquet(dataset / 'runs' / 'trial.parquet')
+    code, _, err = run(capsys, '--recordings', str(dataset), '--out', str(tmp_path / 'out'),
+                       '--quiet')
+    assert code == EXIT_INPUT and err.count('\n') == 1
+    assert "cannot read the dataset (run 'trial' has NaN/Inf in ['v'])" in err, err
+
+
+@pytest.mark.parametrize('physics, words', [
+    ('kvlcc2_hsva_mmg.yaml', "the MMG standard model (Yasukawa & Yoshimura 2015) takes "
+                             "['u', 'v', 'r']"),
+    ('otter_fossen.yaml', 'takes'),
+])
+def test_a_physics_of_another_family_is_one_line(capsys, tmp_path, physics, words):
+    dataset = _short_dataset(tmp_path, 2000)
+    code, _, err = run(capsys, '--recordings', str(dataset), '--physics', physics, '--out',
+                       str(tmp_path / 'out'), '--quiet')
+    assert code == EXIT_INPUT and err.count('\n') == 1 and words in err, err

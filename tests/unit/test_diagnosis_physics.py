@@ -1,4 +1,4 @@
-"""Candidate terms and physics files: signs, numpy = torch, load/save, the simulator hook."""
+"""Candidate terms and physics files: signs, numpy = torch, load/save, the simulator."""
 
 import math
 
@@ -6,23 +6,21 @@ import numpy as np
 import pytest
 import torch
 
-from vessel_physics import candidates
-from vessel_physics.augmented import (
-    ENV_VAR,
-    ExtraTerm,
-    Physics,
+from vessel_physics.errors import ConfigError
+from vessel_physics.family import ExtraTerm, Physics
+from vessel_physics.patrol import FAMILY, SIMULATOR_TERMS, candidates
+from vessel_physics.patrol.forces import propulsion, wind
+from vessel_physics.physics_file import (
     load_physics,
     physics_from_dict,
+    write_parameters,
     write_physics,
-    write_vessel,
 )
-from vessel_physics.config import load_config
-from vessel_physics.errors import ConfigError
-from vessel_physics.params import load_named_vessel
-from vessel_physics.simulator import Simulator
-from vessel_physics.terms import SIMULATOR_TERMS, propulsion, wind
+from vessel_physics.simulation.config import load_simulation as load_config
+from vessel_physics.simulation.simulator import Simulator
 
-P = load_named_vessel('patrol_vessel')
+P = load_physics('patrol_vessel').params
+CANDIDATES = sorted(n for n, t in FAMILY.terms.items() if t.kind == 'candidate')
 RNG = np.random.default_rng(3)
 Z = np.column_stack([RNG.uniform(2, 9, 8), RNG.normal(0, 0.3, 8), RNG.normal(0, 0.02, 8),
                      RNG.normal(0, 0.02, 8), RNG.normal(0, 0.03, 8)])
@@ -31,9 +29,9 @@ C = np.column_stack([RNG.uniform(40, 100, 8), RNG.normal(0, 0.1, 8), RNG.normal(
                      RNG.uniform(0, 15, 8), np.cos(GAMMA), np.sin(GAMMA)])
 
 
-@pytest.mark.parametrize('name', sorted(candidates.CANDIDATES))
+@pytest.mark.parametrize('name', CANDIDATES)
 def test_candidate_terms_agree_on_numpy_and_torch(name):
-    fn = candidates.CANDIDATES[name].fn
+    fn = FAMILY.terms[name].fn
     expected = fn(Z, C, P)
     zt = torch.tensor(Z, dtype=torch.float64, requires_grad=True)
     got = fn(zt, torch.tensor(C, dtype=torch.float64), P)
@@ -82,15 +80,15 @@ def test_plain_vessel_file_means_every_simulator_term():
 def test_physics_file_round_trip(tmp_path):
     extra = (ExtraTerm('relative_wind_sway', 'Y', 212.0, {'category': 'wind'}),
              ExtraTerm('propulsion', 'XYKN', -0.05))
-    physics = Physics(P.replace(Xauu=-2400.0), ('rigid_body_coriolis', 'restoring',
-                                                'hull_damping', 'propulsion'), extra)
-    write_vessel(physics.params, tmp_path / 'v.yaml', 'header\nline')
+    physics = Physics(FAMILY, FAMILY.replace(P, Xauu=-2400.0), (
+        'rigid_body_coriolis', 'restoring', 'hull_damping', 'propulsion'), extra)
+    write_parameters(physics, tmp_path / 'v.yaml', 'header\nline')
     write_physics(physics, tmp_path / 'p.yaml', 'v.yaml', 'a physics')
     loaded = load_physics(tmp_path / 'p.yaml')
     assert loaded.params == physics.params and loaded.terms == physics.terms
     assert [t.to_dict() for t in loaded.extra_terms] == [t.to_dict() for t in extra]
     np.testing.assert_allclose(loaded.force(Z, C), physics.force(Z, C), rtol=1e-12)
-    manual = Physics(physics.params, physics.terms).force(Z, C)
+    manual = Physics(FAMILY, physics.params, physics.terms).force(Z, C)
     manual[:, 1] += 212.0 * candidates.relative_wind_sway(Z, C, P)[:, 1]
     manual -= 0.05 * propulsion(Z, C, P)
     np.testing.assert_allclose(loaded.force(Z, C), manual, rtol=1e-12)
@@ -103,6 +101,13 @@ def test_physics_file_round_trip(tmp_path):
       'extra_terms': [{'term': 'sway_linear', 'dofs': 'Q', 'coefficient': 1.0}]},
      'extra_terms[0]: dofs: expected letters of XYKN'),
     ({'format': 'vessel-physics/1', 'vesel': 'x'}, "unknown key 'vesel' (did you mean"),
+    ({'format': 'vessel-physics/2', 'family': 'mmg', 'parameters': 'patrol_vessel.yaml'},
+     'not a parameter file of the MMG standard model'),
+    ({'format': 'vessel-physics/2', 'family': 'fossen', 'parameters': 'otter_fossen.yaml',
+      'extra_terms': [{'term': 'roll_bias', 'dofs': 'K', 'coefficient': 1.0}]},
+     "unknown term 'roll_bias'"),
+    ({'format': 'vessel-physics/2', 'family': 'raft'}, 'family: expected one of patrol, mmg'),
+    ({'format': 'wavefront/1'}, "format: 'wavefront/1' is no physics or parameter file"),
 ])
 def test_bad_physics_files_fail_with_one_line(data, message):
     with pytest.raises(ConfigError, match=None) as info:
@@ -110,14 +115,12 @@ def test_bad_physics_files_fail_with_one_line(data, message):
     assert message in str(info.value) and '\n' not in str(info.value)
 
 
-def test_simulator_hook_adds_the_extra_terms(tmp_path, monkeypatch):
-    physics = Physics(P, SIMULATOR_TERMS, (ExtraTerm('sway_bias', 'Y', 20000.0),))
+def test_simulator_adds_the_extra_terms_of_its_physics(tmp_path):
+    physics = Physics(FAMILY, P, SIMULATOR_TERMS, (ExtraTerm('sway_bias', 'Y', 20000.0),))
     write_physics(physics, tmp_path / 'p.yaml', 'patrol_vessel.yaml')
-    monkeypatch.setenv(ENV_VAR, str(tmp_path / 'p.yaml'))
     quiet = {'waves': {'enabled': False}, 'wind': {'enabled': False},
              'noise': {'enabled': False}, 'operator': {'enabled': False}, 'warmup_s': 0.0}
-    pushed = Simulator(load_config({**quiet,
-                                    'extra_forces': 'vessel_physics.augmented:extra_forces_hook'}),
+    pushed = Simulator(load_config({**quiet, 'physics': str(tmp_path / 'p.yaml')}),
                        seed=1).run(60)
     plain = Simulator(load_config(quiet), seed=1).run(60)
     assert pushed['v_true'][0, -1] > plain['v_true'][0, -1] + 0.05   # pushed to starboard

@@ -3,14 +3,21 @@
 import numpy as np
 import pytest
 
-from vessel_diagnosis.library import LibraryError, load_library, parameter_unit
+from vessel_diagnosis.library import LibraryError, froude_power
+from vessel_diagnosis.library import load_library as load_family_library
 from vessel_diagnosis.predict import Predictor
 from vessel_diagnosis.selection import BootstrapLasso, effective_sample_ratio
 from vessel_diagnosis.settings import SettingsError, load_settings
-from vessel_physics.augmented import Physics
-from vessel_physics.params import load_named_vessel
+from vessel_physics.families import FAMILIES
+from vessel_physics.patrol import FAMILY
+from vessel_physics.patrol.family import parameter_unit
+from vessel_physics.physics_file import load_physics
 
-P = load_named_vessel('patrol_vessel')
+PHYSICS = load_physics('patrol_vessel')
+
+
+def load_library(path=None):
+    return load_family_library(path, FAMILY)
 
 
 def test_parameter_units_follow_the_textbook_names():
@@ -18,6 +25,24 @@ def test_parameter_units_follow_the_textbook_names():
     assert parameter_unit('Nrar') == 'N m s^2 rad^-2'
     assert parameter_unit('Kp') == 'N m s rad^-1'
     assert parameter_unit('Yvdot') == 'kg'
+
+
+def test_froude_powers_of_units():
+    assert froude_power('N') == 3 and froude_power('N m') == 4
+    assert froude_power('N s/m') == 2.5 and froude_power('N m^-2 s^2') == 2
+    assert froude_power('m/s') == 0.5 and froude_power('rad') == 0
+    assert froude_power('1 (fraction of the term)') == 0
+
+
+@pytest.mark.parametrize('family', sorted(FAMILIES))
+def test_every_family_has_a_library_of_its_own_terms(family):
+    library = load_family_library(None, FAMILIES[family])
+    assert library.family == family and len(library.candidates) >= 10
+    # Absolute sizes follow Froude's law: a vessel twice as long, forces 8 times.
+    double = library.scaled_to(2.0 * library.reference_length_m)
+    for before, after in zip(library.candidates, double.candidates, strict=True):
+        ratio = (after.absolute_scale or after.scale) / before.scale
+        assert ratio == pytest.approx(2.0 ** froude_power(before.unit))
 
 
 def test_default_library_loads_and_covers_the_categories():
@@ -45,7 +70,7 @@ def test_bad_settings_fail_with_one_line(tmp_path):
 
 def test_batched_variants_equal_separate_predictions():
     library = load_library()
-    physics = Physics(P)
+    physics = PHYSICS
     rng = np.random.default_rng(0)
     n, horizon = 5, 6
     z0 = np.column_stack([rng.uniform(3, 8, n), rng.normal(0, 0.2, n), rng.normal(0, 0.01, n),
@@ -66,7 +91,7 @@ def test_batched_variants_equal_separate_predictions():
 
 
 def test_current_offsets_ground_from_water_velocity():
-    physics = Physics(P)
+    physics = PHYSICS
     z = np.array([[6.0, 0.0, 0.0, 0.0, 0.0]])
     c = np.array([[80.0, 0.0, 0.0, 0.0, 1.0, 0.0]])
     still = Predictor(physics).one_step(z, np.zeros(1), c, c)

@@ -15,16 +15,17 @@ from vessel_diagnosis.library import load_library
 from vessel_diagnosis.recordings import Run
 from vessel_diagnosis.scale import ScaleError, check_scale
 from vessel_diagnosis.settings import load_settings
+from vessel_physics.patrol import FAMILY as PATROL
 
 SHIP = load_vessel('patrol_boat')
-LIBRARY = load_library()
+LIBRARY = load_library(None, PATROL)
 SCALE = load_settings().scale_check
 MODEL_SCALE = 50.0     # Froude scaling: speeds / sqrt(scale), rates * sqrt(scale)
 STATES = ('u', 'v', 'p', 'r', 'phi')
 
 
 def _excluded(vessel):
-    library, exclusions = admissible(LIBRARY, vessel)
+    library, exclusions = admissible(LIBRARY, vessel, PATROL)
     by_category = {e.category: e for e in exclusions}
     assert len(by_category) == len(exclusions)                 # one line per category
     assert set(library.by_name) | {n for e in exclusions for n in e.candidates} == set(

@@ -12,7 +12,7 @@ from hybrid_models.run_store import MIRROR_SUFFIX, build_split, mirror_rows
 from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
 from vessel_datasets.format import read_dataset
 from vessel_description import VesselError, load_vessel, parse_vessel
-from vessel_physics.mmg import find_params_file, load_mmg
+from vessel_physics.physics_file import load_physics
 
 TWIN = load_vessel('snuboat')
 KVLCC2 = load_vessel('kvlcc2_hsva')
@@ -64,7 +64,7 @@ def test_wind_from_port_becomes_wind_from_starboard():
 def mmg_forecasts(symmetric: bool):
     """Feed back three seconds of a KVLCC2 MMG forecast and of its mirror image."""
     ship = declared(KVLCC2, {'n': 'n', 'delta': '-delta'})
-    values = asdict(load_mmg(find_params_file(KVLCC2.physics)))
+    values = asdict(load_physics(KVLCC2.physics, KVLCC2).params)
     if symmetric:   # one wake and one flow-straightening coefficient for both sides
         values['gamma_R_minus'] = values['gamma_R_plus']
         values['C_2_minus'] = values['C_2_plus']

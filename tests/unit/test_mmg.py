@@ -6,10 +6,15 @@ import numpy as np
 import pytest
 import torch
 
-from vessel_physics import mmg
 from vessel_physics.errors import ConfigError
-from vessel_physics.params import config_dir
-from vessel_physics.zigzag import zigzag
+from vessel_physics.family import Physics
+from vessel_physics.files import config_dir
+from vessel_physics.mmg import FAMILY
+from vessel_physics.mmg import forces as mmg
+from vessel_physics.mmg.family import inverse_mass_matrix_t
+from vessel_physics.mmg.params import HULL_N, HULL_X, HULL_Y, MmgParams
+from vessel_physics.mmg.zigzag import zigzag
+from vessel_physics.physics_file import load_physics
 
 shipmmg = pytest.importorskip('shipmmg.mmg_3dof', reason='shipmmg is the reference model')
 
@@ -18,9 +23,14 @@ REV_PER_S = 17.95            # Yasukawa & Yoshimura's KVLCC2 model propeller spe
 SERVICE_SPEED = 1.179        # m/s, the 7 m model's approach speed
 
 
+def physics(params: MmgParams) -> Physics:
+    """Return the MMG model of the parameters, in the family's vectors (c = [n, delta])."""
+    return Physics(FAMILY, params, FAMILY.model_terms)
+
+
 @pytest.fixture(scope='module')
 def published():
-    return mmg.load_mmg(PUBLISHED)
+    return load_physics(PUBLISHED).params
 
 
 @pytest.fixture(scope='module')
@@ -34,7 +44,7 @@ def as_shipmmg(published):
     return published.replace(x_G=0.0, wake_model='exponential')
 
 
-def reference_params(p: mmg.MmgParams):
+def reference_params(p: MmgParams):
     """Return shipmmg's two parameter objects for ``p`` (dimensional where it wants)."""
     unit, m = p.half_rho_l2d, p.mass
     basic = shipmmg.Mmg3DofBasicParams(
@@ -43,7 +53,7 @@ def reference_params(p: mmg.MmgParams):
         J_z=p.J_z * unit * p.L_pp ** 2, f_α=p.f_alpha, ϵ=p.epsilon, t_R=p.t_R,
         x_R=p.x_R * p.L_pp, a_H=p.a_H, x_H=p.x_H * p.L_pp, γ_R_minus=p.gamma_R_minus,
         γ_R_plus=p.gamma_R_plus, l_R=p.l_R, κ=p.kappa, t_P=p.t_P, w_P0=p.w_P0, x_P=p.x_P)
-    names = mmg.HULL_X + mmg.HULL_Y + mmg.HULL_N
+    names = HULL_X + HULL_Y + HULL_N
     manoeuvring = shipmmg.Mmg3DofManeuveringParams(
         k_0=p.k_0, k_1=p.k_1, k_2=p.k_2,
         **{n + '_dash': getattr(p, n) for n in names})
@@ -82,7 +92,7 @@ def run_zigzag(p, angles_deg=(10.0,), seconds=60.0, dt=0.05, substeps=2):
     """Closed-loop zig-zags of our model at Yasukawa & Yoshimura's approach condition."""
     angles = np.radians(angles_deg)
     ones = np.ones(len(angles))
-    return zigzag(p, SERVICE_SPEED * ones, REV_PER_S * 2 * math.pi * ones, angles, angles,
+    return zigzag(physics(p), SERVICE_SPEED * ones, REV_PER_S * 2 * math.pi * ones, angles, angles,
                   math.radians(15.8), seconds, dt, substeps)
 
 
@@ -131,29 +141,29 @@ def test_non_dimensional_units(published):
     r_dash = r * 7.0 / u
     n_expected = 0.5 * p.rho * 49.0 * p.d * u * u * (-0.049 * r_dash - 0.013 * r_dash ** 3)
     assert yaw[2] == pytest.approx(n_expected)
-    inverse = np.array(mmg.inverse_mass_matrix_t(p)).T
+    inverse = inverse_mass_matrix_t(p).T
     np.testing.assert_allclose(inverse @ matrix, np.eye(3), atol=1e-12)
 
 
 def test_rudder_turns_to_starboard_and_thrust_balances(published):
     z = np.array([SERVICE_SPEED, 0.0, 0.0])
     n = REV_PER_S * 2 * math.pi
-    port, stbd = (mmg.derivative(z, np.array([n, d]), published) for d in (-0.3, 0.3))
+    port, stbd = (physics(published).derivative(z, np.array([n, d])) for d in (-0.3, 0.3))
     assert stbd[2] > 0 > port[2]          # positive delta: bow to starboard (MMG)
-    ahead = mmg.derivative(z, np.array([n, 0.0]), published)
+    ahead = physics(published).derivative(z, np.array([n, 0.0]))
     assert abs(ahead[0]) < 0.05           # m/s^2: near self-propulsion at 17.95 rps
 
 
 def test_regular_at_rest_with_autograd(published):
     z = torch.zeros(2, 3, dtype=torch.float64, requires_grad=True)
     c = torch.tensor([[0.0, 0.2], [60.0, -0.2]], dtype=torch.float64)
-    acc = mmg.derivative(z, c, published)
+    acc = physics(published).derivative(z, c)
     acc.sum().backward()
     assert torch.isfinite(acc).all() and torch.isfinite(z.grad).all()
     assert acc[0].abs().max() < 1e-6      # at rest, propeller stopped: no force
     assert acc[1, 0] > 0                  # bollard pull
     biased = published.replace(Y_0=10.0, N_0=-5.0)
-    np.testing.assert_allclose(mmg.force(np.zeros(3), np.zeros(2), biased), [0.0, 10.0, -5.0],
+    np.testing.assert_allclose(physics(biased).force(np.zeros(3), np.zeros(2)), [0.0, 10.0, -5.0],
                                atol=1e-9)
 
 
@@ -162,11 +172,12 @@ def test_bad_files_refused(tmp_path, published):
     bad = tmp_path / 'bad.yaml'
     bad.write_text(text.replace('wake_model: yasukawa2015', 'wake_model: kijima'))
     with pytest.raises(ConfigError, match='wake_model'):
-        mmg.load_mmg(bad)
+        load_physics(bad)
     bad.write_text(text.replace('t_P: 0.220', 't_P: 1.2'))
     with pytest.raises(ConfigError, match='t_P'):
-        mmg.load_mmg(bad)
+        load_physics(bad)
     bad.write_text(text.replace('X_vv: -0.040', 'Xvv: -0.040'))
     with pytest.raises(ConfigError, match="unknown MMG parameter 'Xvv'"):
-        mmg.load_mmg(bad)
-    assert mmg.is_mmg_file(PUBLISHED) and not mmg.is_mmg_file(config_dir() / 'patrol_vessel.yaml')
+        load_physics(bad)
+    assert load_physics(PUBLISHED).family is FAMILY
+    assert load_physics(config_dir() / 'patrol_vessel.yaml').family is not FAMILY

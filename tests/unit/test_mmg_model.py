@@ -10,8 +10,8 @@ from hybrid_models.engine import Forecaster
 from hybrid_models.models import build_model
 from hybrid_models.physical import build_physical
 from vessel_description import load_vessel, parse_vessel
-from vessel_physics import mmg
-from vessel_physics.params import config_dir
+from vessel_physics.integrator import free_run
+from vessel_physics.physics_file import load_physics
 
 TANKER = load_vessel('kvlcc2_hsva')
 W, H = 10, 30
@@ -19,14 +19,14 @@ W, H = 10, 30
 
 def test_one_step_is_the_mmg_equation_of_motion():
     model = build_physical({'kind': 'mmg', 'substeps': 3}, TANKER)
-    params = mmg.load_mmg(config_dir() / 'kvlcc2_hsva_mmg.yaml')
+    physics = load_physics('kvlcc2_hsva_mmg.yaml')
     z = np.array([[1.17, 0.02, 0.01], [1.0, -0.05, -0.03]])
     c = np.array([[64.27, 0.2], [64.27, -0.35]])   # [n rad/s, delta rad], the vessel's order
-    expected = mmg.simulate(params, z, c[:, None, :], TANKER.dt, 3)[:, -1]
+    expected = free_run(physics.derivative, z, c[:, None, :], TANKER.dt, 3)[:, -1]
     np.testing.assert_allclose(model.predict(z, c), expected, rtol=1e-12)
     rebuilt = build_physical(model.describe(), TANKER)   # as a checkpoint stores it
     np.testing.assert_allclose(rebuilt.predict(z, c), expected, rtol=1e-12)
-    assert model.describe()['mmg']['name'] == 'kvlcc2_hsva_mmg'
+    assert model.describe()['physics']['parameters']['name'] == 'kvlcc2_hsva_mmg'
 
 
 def test_actuators_are_found_by_kind_not_position():
@@ -49,8 +49,8 @@ def test_subsets_and_residual_regression():
 
 
 @pytest.mark.parametrize('vessel, message', [
-    ('patrol_boat', 'not an MMG parameter file'),
-    ('snuboat', 'names no MMG parameter file'),
+    ('patrol_boat', 'not the mmg family'),
+    ('snuboat', 'names none'),
 ])
 def test_other_vessels_are_refused_in_one_line(vessel, message):
     with pytest.raises(ValueError, match=message) as info:

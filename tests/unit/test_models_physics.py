@@ -11,8 +11,8 @@ from vessel_description import load_vessel
 
 SHIP = load_vessel('patrol_boat')
 
-vp = pytest.importorskip('vessel_physics.params')
-P = vp.load_named_vessel('nominal_vessel')
+vp = pytest.importorskip('vessel_physics.physics_file')
+P = vp.load_physics('nominal_vessel').params
 M = np.array([
     [P.m - P.Xudot, 0, 0, 0],
     [0, P.m - P.Yvdot, -(P.m * P.zG + P.Ypdot), P.m * P.xG - P.Yrdot],

@@ -11,9 +11,9 @@ from hybrid_models.models import build_model
 from hybrid_models.physical import build_physical
 from tests.unit.test_models_engine import inputs, make_model, torch_forecast
 from vessel_description import load_vessel
-from vessel_physics.mass import mass_matrix
-from vessel_physics.params import load_named_vessel
-from vessel_physics.terms import PRO_TERMS, SIMULATOR_TERMS
+from vessel_physics.patrol import PRO_TERMS, SIMULATOR_TERMS
+from vessel_physics.patrol.family import mass_matrix
+from vessel_physics.physics_file import load_physics
 
 SHIP = load_vessel('patrol_boat')
 
@@ -50,7 +50,7 @@ def test_extra_terms_add_their_force_through_the_mass_matrix(tmp_path):
         tmp_path, PRO_TERMS, [{'term': 'surge_bias', 'dofs': 'X', 'coefficient': surge_force,
                                'category': 'resistance'}], 'augmented.yaml'))})
     gained = augmented.derivative(STATES, CONTROLS) - plain.derivative(STATES, CONTROLS)
-    minv = np.linalg.inv(mass_matrix(load_named_vessel('nominal_vessel')))
+    minv = np.linalg.inv(mass_matrix(load_physics('nominal_vessel').params))
     expected = minv @ np.array([surge_force, 0.0, 0.0, 0.0])
     for row in gained.numpy():
         np.testing.assert_allclose(row[:4], expected, rtol=1e-9)
@@ -76,7 +76,7 @@ def test_checkpoint_keeps_the_physics_inline(tmp_path):
     stored = saved_cfg['model']['physical']
     assert stored['physics_source'] == str(path)
     assert stored['physics']['extra_terms'][0]['term'] == 'surge_linear'
-    assert stored['physics']['vessel']['name'] == load_named_vessel('nominal_vessel').name
+    assert stored['physics']['parameters']['name'] == load_physics('nominal_vessel').params.name
     z, c = STATES.float(), CONTROLS.float()
     with torch.no_grad():
         assert torch.equal(model.physical(z, c), loaded.physical(z, c))

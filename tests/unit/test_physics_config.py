@@ -1,12 +1,33 @@
-"""Configuration: defaults, and one clear line for every bad key or value."""
+"""Simulation configuration: defaults, and one clear line for every bad key or value."""
 
 from pathlib import Path
 
 import pytest
 import yaml
 
-from vessel_physics.config import ConfigError, defaults, load_config, load_hook
-from vessel_physics.params import config_dir, load_named_vessel, load_vessel, params_from_dict
+from vessel_physics.errors import ConfigError
+from vessel_physics.files import config_dir
+from vessel_physics.patrol.params import params_from_dict
+from vessel_physics.physics_file import load_physics
+from vessel_physics.simulation.config import (
+    default_config_path,
+    defaults,
+    load_hook,
+    load_simulation,
+)
+
+load_config = load_simulation
+
+
+def keys(tree: dict, prefix: str = '') -> set[str]:
+    """Every key of a nested mapping, dotted (a mapping of values counts as one key)."""
+    out = set()
+    for key, value in tree.items():
+        if isinstance(value, dict) and key not in ('std', 'actuators'):
+            out |= keys(value, f'{prefix}{key}.')
+        else:
+            out.add(prefix + key)
+    return out
 
 
 def error_of(source) -> str:
@@ -17,9 +38,9 @@ def error_of(source) -> str:
     return message
 
 
-def test_default_file_spells_out_every_default():
-    data = yaml.safe_load((config_dir() / 'simulation.yaml').read_text())
-    assert data == defaults()
+def test_default_file_spells_out_every_key():
+    data = yaml.safe_load(default_config_path().read_text())
+    assert keys(data) == keys(defaults())
     assert load_config() == load_config({})
 
 
@@ -33,9 +54,12 @@ def test_default_file_spells_out_every_default():
     ({'waves': {'components': 2.5}}, ['waves.components', 'an integer']),
     ({'wind': {'force_scale': True}}, ['wind.force_scale', 'a number']),
     ({'wind': {'enabled': 'yes'}}, ['wind.enabled', 'true or false']),
-    ({'operator': {'shaft_speed_rpm': [366, 5000]}}, ['operator.shaft_speed_rpm', '1000 (rpm)']),
+    ({'operator': {'shaft_speed_rpm': [366, 5000]}}, ['operator.shaft_speed_rpm', '1000] rpm']),
     ({'wind': 3}, ['wind', 'expected a mapping']),
-    ({'vessel': 'no_such_vessel'}, ['vessel', 'no_such_vessel.yaml']),
+    ({'vessel': 'no_such_vessel'}, ['vessel', 'no_such_vessel', 'not a shipped vessel']),
+    ({'vessel': 'patrol_vessel.yaml'}, ['vessel', 'a physics or parameter file',
+                                        'physics: patrol_vessel.yaml']),
+    ({'vessel': 'kvlcc2_hsva', 'waves': {'enabled': True}}, ['waves.enabled', 'feels no waves']),
     ({'extra_forces': 'nodots'}, ['extra_forces', "'module:function'"]),
     ({'extra_forces': 'no_such_module_xyz:f'}, ['extra_forces', 'cannot import',
                                                  'no_such_module_xyz']),
@@ -58,13 +82,13 @@ def test_bad_yaml_files(tmp_path):
     assert 'expected a mapping' in error_of(listy)
 
 
-def test_user_file_overrides_and_finds_vessel_beside_it(tmp_path):
+def test_user_file_overrides_and_finds_physics_beside_it(tmp_path):
     (tmp_path / 'my_vessel.yaml').write_text(
         (config_dir() / 'patrol_vessel.yaml').read_text().replace('GM: 1.1 ', 'GM: 1.2 '))
     cfg_file = tmp_path / 'sim.yaml'
-    cfg_file.write_text('vessel: my_vessel.yaml\nwaves:\n  hs_m: [1.0, 1.5]\n')
+    cfg_file.write_text('physics: my_vessel.yaml\nwaves:\n  hs_m: [1.0, 1.5]\n')
     cfg = load_config(cfg_file)
-    assert cfg.vessel.GM == 1.2
+    assert cfg.params.GM == 1.2 and cfg.vessel.name == 'patrol_boat'
     assert cfg.waves.hs_m == (1.0, 1.5)
     assert cfg.waves.gamma == 3.3                       # untouched default
     assert cfg.to_dict()['waves']['hs_m'] == [1.0, 1.5]
@@ -76,7 +100,7 @@ def test_hook_loader_returns_the_callable():
 
 
 def test_vessels_load_and_differ_where_the_paper_says():
-    true, nominal = load_named_vessel('patrol_vessel'), load_named_vessel('nominal_vessel')
+    true, nominal = (load_physics(n).params for n in ('patrol_vessel', 'nominal_vessel'))
     differ = {k for k in true.__dataclass_fields__
               if getattr(true, k) != getattr(nominal, k)}
     assert differ == {'name', 'rho', 'm', 'displacement', 'GM', 'Ixx', 'Izz', 'Yvdot', 'Kpdot',
@@ -97,5 +121,5 @@ def test_vessel_file_errors_are_one_line(tmp_path):
         with pytest.raises(ConfigError) as info:
             params_from_dict(data)
         assert words in str(info.value) and '\n' not in str(info.value)
-    with pytest.raises(ConfigError, match='cannot read vessel file'):
-        load_vessel(Path(tmp_path) / 'nope.yaml')
+    with pytest.raises(ConfigError, match='no such file'):
+        load_physics(Path(tmp_path) / 'nope.yaml')

@@ -7,16 +7,21 @@ import numpy as np
 import pytest
 from scipy import integrate
 
-from vessel_physics.config import load_config
-from vessel_physics.current import CurrentField, draw_current
-from vessel_physics.noise import CHANNELS, SensorNoise
-from vessel_physics.operator import RPM, Operator
-from vessel_physics.params import load_named_vessel
-from vessel_physics.waves import WaveDraw, WaveField, draw_waves, jonswap, mean_peak_period
-from vessel_physics.wind import WindField, draw_wind, harris_spectrum
+from vessel_physics.simulation.config import load_simulation as load_config
+from vessel_physics.simulation.current import CurrentField, draw_current
+from vessel_physics.simulation.noise import SensorNoise
+from vessel_physics.simulation.operator import RPM, Operator
+from vessel_physics.simulation.waves import (
+    WaveDraw,
+    WaveField,
+    draw_waves,
+    jonswap,
+    mean_peak_period,
+)
+from vessel_physics.simulation.wind import WindField, draw_wind, harris_spectrum
 
 CFG = load_config({})
-P = load_named_vessel('patrol_vessel')
+P = CFG.physics.family.wave_hull(CFG.params)   # the patrol boat's box hull
 RHO_G = 1014.0 * 9.81
 
 
@@ -165,7 +170,7 @@ def test_current_components_and_drift():
 def test_operator_orders_are_routine_like_and_per_run_deterministic():
     cfg = CFG.operator
     rngs = [np.random.default_rng(s) for s in range(20)]
-    op = Operator(rngs, cfg)
+    op = Operator(rngs, cfg, CFG.vessel)
     history = []
     for t in range(3600):
         history.append(op.setpoints(float(t)))
@@ -178,7 +183,7 @@ def test_operator_orders_are_routine_like_and_per_run_deterministic():
     assert 2 <= changes <= 60                          # shaft holds of minutes
     rudder_changes = np.count_nonzero(np.diff(dp, axis=0)) / 20
     assert 20 <= rudder_changes <= 400                 # rudder holds of tens of seconds
-    alone = Operator([np.random.default_rng(7)], cfg)
+    alone = Operator([np.random.default_rng(7)], cfg, CFG.vessel)
     hist7 = [alone.setpoints(float(t))[0][0] for t in range(3600)]
     np.testing.assert_array_equal(hist7, n[:, 7])
 
@@ -189,6 +194,6 @@ def test_noise_streams_are_per_run():
     single = SensorNoise([np.random.default_rng(2)], cfg)
     for _ in range(100):
         np.testing.assert_array_equal(batch.next()[2], single.next()[0])
-    sigma = np.array([cfg.std[c] for c in CHANNELS])
+    sigma = np.array([cfg.std[c] for c in batch.channels])
     draws = np.array([single.next()[0] for _ in range(2000)])
     np.testing.assert_allclose(draws.std(axis=0), sigma, rtol=0.1)

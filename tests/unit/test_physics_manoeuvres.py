@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from vessel_physics.config import load_config
-from vessel_physics.operator import RPM
-from vessel_physics.simulator import Simulator
+from vessel_physics.simulation.config import load_simulation as load_config
+from vessel_physics.simulation.operator import RPM
+from vessel_physics.simulation.simulator import Simulator
 
 CALM = {'wind': {'enabled': False}, 'waves': {'enabled': False},
         'noise': {'enabled': False}, 'operator': {'enabled': False}, 'warmup_s': 0.0}

@@ -12,11 +12,17 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_models.physical.mmg_model import build_mmg
+from hybrid_models.physical import build_physical
 from vessel_description import load_vessel, parse_vessel
-from vessel_physics import mmg, scale_physics
+from vessel_physics.integrator import free_run
+from vessel_physics.mmg import scale as scale_physics
+from vessel_physics.physics_file import load_physics
 
 FULL_M = 320.0
+
+
+def build_mmg(vessel):
+    return build_physical({'kind': 'mmg'}, vessel)
 
 
 def tanker(length_m, physics):
@@ -41,8 +47,10 @@ def test_the_froude_scaled_file_is_the_same_hull_at_full_scale(tmp_path, capsys)
     lam = FULL_M / 7.0
     assert f'propeller speeds and yaw rates x {1 / math.sqrt(lam):.4g}' in \
         capsys.readouterr().err
-    model = mmg.load_mmg(mmg.find_params_file('kvlcc2_hsva_mmg'))
-    full = build_mmg(tanker(FULL_M, str(out))).params  # accepted for the 320 m vessel
+    small_ship = load_physics('kvlcc2_hsva_mmg')
+    model = small_ship.params
+    full_ship = build_mmg(tanker(FULL_M, str(out))).physics  # accepted for the 320 m vessel
+    full = full_ship.params
     assert full.L_pp == pytest.approx(FULL_M) and full.D_p == pytest.approx(model.D_p * lam)
     assert full.mass == pytest.approx(model.mass * lam ** 3)
     assert (full.N_r, full.t_P, full.k_zz) == (model.N_r, model.t_P, model.k_zz)
@@ -52,10 +60,10 @@ def test_the_froude_scaled_file_is_the_same_hull_at_full_scale(tmp_path, capsys)
     delta = np.radians(20.0) * np.sign(np.sin(2 * math.pi * t / 60.0) + 1e-9)
     controls = np.stack([np.full(steps, 64.27), delta], axis=-1)
     z0 = np.array([1.18, 0.0, 0.0])
-    small = mmg.simulate(model, z0, controls, dt, substeps=4)
+    small = free_run(small_ship.derivative, z0, controls, dt, substeps=4)
     root = math.sqrt(lam)
-    big = mmg.simulate(full, z0 * [root, root, 1 / root],
-                       controls * [1 / root, 1.0], dt * root, substeps=4)
+    big = free_run(full_ship.derivative, z0 * [root, root, 1 / root],
+                   controls * [1 / root, 1.0], dt * root, substeps=4)
     np.testing.assert_allclose(big / [root, root, 1 / root], small, rtol=1e-6, atol=1e-9)
     assert np.abs(small[:, 2]).max() > 0.05  # the model turned: the comparison means something
 
@@ -63,4 +71,4 @@ def test_the_froude_scaled_file_is_the_same_hull_at_full_scale(tmp_path, capsys)
 def test_a_bad_target_is_one_line(tmp_path, capsys):
     assert scale_physics.main(['no_such_hull', '--length', '3', '--out',
                                str(tmp_path / 'x.yaml')]) == 2
-    assert "no MMG parameter file 'no_such_hull'" in capsys.readouterr().err
+    assert "no MMG parameter file 'no_such_hull.yaml'" in capsys.readouterr().err

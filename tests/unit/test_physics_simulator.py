@@ -6,10 +6,15 @@ import sys
 import numpy as np
 import pytest
 
-from vessel_physics.config import ConfigError, load_config
-from vessel_physics.mass import mass_matrix
-from vessel_physics.operator import RPM
-from vessel_physics.simulator import SAMPLE_KEYS, Simulator
+from vessel_physics.errors import ConfigError
+from vessel_physics.patrol.family import mass_matrix
+from vessel_physics.simulation.config import load_simulation as load_config
+from vessel_physics.simulation.operator import RPM
+from vessel_physics.simulation.simulator import Simulator
+
+SAMPLE_KEYS = ('t', 'u', 'v', 'p', 'r', 'phi', 'psi', 'x', 'y', 'n', 'delta_port',
+               'delta_stbd', 'wind_speed', 'wind_dir_cos', 'wind_dir_sin', 'u_true', 'v_true',
+               'p_true', 'r_true', 'phi_true', 'psi_true', 'x_true', 'y_true')
 
 CALM = {'wind': {'enabled': False}, 'waves': {'enabled': False},
         'noise': {'enabled': False}, 'operator': {'enabled': False}, 'warmup_s': 0.0}
@@ -75,7 +80,7 @@ def test_command_overrides_operator_whose_stream_still_advances():
     np.testing.assert_allclose(driven.state['n'], 500 * RPM, rtol=1e-3)
     assert driven.state['delta_port'][0] == pytest.approx(0.1, abs=1e-3)
     np.testing.assert_array_equal(driven.operator.shaft, free.operator.shaft)
-    np.testing.assert_array_equal(driven.operator.rudder_port, free.operator.rudder_port)
+    np.testing.assert_array_equal(driven.operator.angle, free.operator.angle)
     with pytest.raises(KeyError, match='unknown command'):
         driven.advance({'rpm': 3.0})
     with pytest.raises(ValueError, match='finite'):
@@ -166,7 +171,7 @@ def test_hook_adds_a_constant_force_as_physics_says(hook_module):
     at_rest(sim)
     s = sim.advance(STOP)
     # Starting from rest the acceleration is M^-1 [0, F, 0, 0] (quadratic damping ~ 0).
-    expected_v = np.linalg.solve(mass_matrix(sim.params), [0, 20000.0, 0, 0])[1] * 1.0
+    expected_v = np.linalg.solve(mass_matrix(sim.config.params), [0, 20000.0, 0, 0])[1] * 1.0
     assert s['v_true'][0] == pytest.approx(expected_v, rel=0.02)
     for _ in range(120):
         s = sim.advance(STOP)
@@ -187,7 +192,7 @@ def test_hook_adds_a_constant_force_as_physics_says(hook_module):
 
 def test_hook_with_wrong_output_fails_clearly(hook_module):
     sim = Simulator(calm(extra_forces=f'{hook_module}:wrong_shape'), n_runs=2)
-    with pytest.raises(ValueError, match=r'must return finite \[X, Y, K, N\] of shape \(2, 4\)'):
+    with pytest.raises(ValueError, match=r'must return finite forces of shape \(2, 4\)'):
         sim.advance(STOP)
 
 

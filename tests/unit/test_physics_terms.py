@@ -6,14 +6,34 @@ import numpy as np
 import pytest
 import torch
 
-from vessel_physics import terms
-from vessel_physics.actuators import rudder_rate, shaft_accel
+from vessel_physics.family import Physics
 from vessel_physics.integrator import kinematics, rk4_step
-from vessel_physics.mass import accelerations, mass_matrix
-from vessel_physics.params import load_named_vessel
-from vessel_physics.wind import wind_force
+from vessel_physics.patrol import forces as terms
+from vessel_physics.patrol.family import FAMILY, PRO_TERMS, SIMULATOR_TERMS, TERMS, mass_matrix
+from vessel_physics.patrol.wind_loads import wind_force
+from vessel_physics.physics_file import load_physics
+from vessel_physics.simulation.actuators import servo_rate
 
-P = load_named_vessel('patrol_vessel')   # literal numbers below are this file's values
+P = load_physics('patrol_vessel').params   # literal numbers below are this file's values
+FORCES = sorted(n for n, t in TERMS.items() if t.kind == 'force')
+
+
+def total_force(names, z, c):
+    return Physics(FAMILY, P, tuple(names)).force(z, c)
+
+
+def accelerations(tau):
+    return Physics(FAMILY, P, ()).rates(tau, tau)[..., :4]
+
+
+def rudder_rate(command, angle, params):
+    return servo_rate(command, angle, -params.rudder_max_angle, params.rudder_max_angle,
+                      params.rudder_time_constant, params.rudder_max_rate)
+
+
+def shaft_accel(command, speed, params):
+    return servo_rate(command, speed, 0.0, params.shaft_max_speed, params.shaft_time_constant,
+                      params.shaft_max_accel)
 G = 9.81
 RPM = 2 * math.pi / 60
 
@@ -133,21 +153,21 @@ def test_mass_matrix_rows_and_inverse():
     assert m[2, 1] == pytest.approx(-(362000 * -1.06 + 296000))
     assert m[3, 3] == pytest.approx(47.934e6 + 38.7e6)
     tau = np.array([[1e4, -2e4, 3e5, -4e6]])
-    np.testing.assert_allclose(accelerations(tau, P)[0], np.linalg.solve(m, tau[0]),
+    np.testing.assert_allclose(accelerations(tau)[0], np.linalg.solve(m, tau[0]),
                                rtol=1e-12)
 
 
 def test_registry_composes_by_name():
     z, c = z_of(6.0, 0.1, 0.01, 0.02, 0.03), c_of(800 * RPM, 0.05, 0.05, 5.0, 1.0)
-    total = terms.total_force(terms.PRO_TERMS, z, c, P)
-    parts = sum(terms.TERMS[n].fn(z, c, P) for n in ('rigid_body_coriolis',
-                                                      'restoring_linear', 'propulsion'))
+    total = total_force(PRO_TERMS, z, c)
+    parts = sum(TERMS[n].fn(z, c, P) for n in ('rigid_body_coriolis',
+                                               'restoring_linear', 'propulsion'))
     np.testing.assert_allclose(total, parts, rtol=1e-12)
-    assert set(terms.SIMULATOR_TERMS) <= set(terms.TERMS)
-    assert terms.TERMS['restoring'].dofs == ('K',)
-    assert terms.TERMS['wind'].velocity == 'ground'
-    with pytest.raises(KeyError, match='unknown force term'):
-        terms.total_force(['nope'], z, c, P)
+    assert set(SIMULATOR_TERMS) <= set(FORCES)
+    assert TERMS['restoring'].dofs == ('K',)
+    assert TERMS['wind'].velocity == 'ground'
+    with pytest.raises(KeyError, match='unknown term'):
+        total_force(['nope'], z, c)
     assert terms.roll_natural_frequency(P) == pytest.approx(1.11, abs=0.02)
 
 
@@ -162,10 +182,10 @@ def random_inputs(rng, n=16):
     return z, c
 
 
-@pytest.mark.parametrize('name', sorted(terms.TERMS))
+@pytest.mark.parametrize('name', FORCES)
 def test_numpy_and_torch_agree_and_gradients_flow(name):
     z, c = random_inputs(np.random.default_rng(0))
-    fn = terms.TERMS[name].fn
+    fn = TERMS[name].fn
     expected = fn(z, c, P)
     zt = torch.tensor(z, dtype=torch.float64, requires_grad=True)
     ct = torch.tensor(c, dtype=torch.float64, requires_grad=True)
@@ -180,9 +200,9 @@ def test_numpy_and_torch_agree_and_gradients_flow(name):
 def test_model_helpers_run_on_torch():
     z, c = random_inputs(np.random.default_rng(1))
     zt, ct = torch.tensor(z), torch.tensor(c)
-    tau = terms.total_force(terms.SIMULATOR_TERMS, zt, ct, P)
-    np.testing.assert_allclose(accelerations(tau, P).numpy(),
-                               accelerations(tau.numpy(), P), rtol=1e-12)
+    tau = total_force(SIMULATOR_TERMS, zt, ct)
+    np.testing.assert_allclose(accelerations(tau).numpy(),
+                               accelerations(tau.numpy()), rtol=1e-12)
     kin = kinematics(zt[:, 0], zt[:, 1], zt[:, 3], zt[:, 4], zt[:, 2] * 10)
     kin_np = kinematics(z[:, 0], z[:, 1], z[:, 3], z[:, 4], z[:, 2] * 10)
     for a, b in zip(kin, kin_np, strict=True):

@@ -5,8 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_predictor.input_window import InputWindow, channel_reader
+from hybrid_predictor.input_window import InputWindow
 from vessel_datasets.topic_map import parse_topic_map, topic_map_for
+from vessel_datasets.topic_messages import channel_reader
 from vessel_description import load_vessel
 
 W, DT = 60, 1.0

@@ -39,7 +39,8 @@ def test_tiny_dataset_end_to_end(tmp_path):
     assert table[['x_true', 'y_true']].iloc[0].tolist() == [0.0, 0.0]
     assert (table['n'] > 30).all()                              # rad/s, not rpm
     prov = ds.manifest['provenance']
-    assert prov['seed'] == 4 and prov['config']['vessel']['name'] == 'patrol_vessel'
+    assert prov['seed'] == 4 and prov['config']['vessel'] == 'patrol_boat'
+    assert prov['config']['physics']['parameters']['name'] == 'patrol_vessel'
     assert set(prov['versions']) >= {'numpy', 'scipy', 'python'}
     assert ds.manifest['runs'][1]['source']['run_index'] == 1
     assert ds.manifest['columns']['psi_true']['unit'] == 'rad'
@@ -82,3 +83,27 @@ def test_refuses_to_overwrite_without_flag(tmp_path):
 def test_help():
     result = run_cli('--help')
     assert result.returncode == 0 and '--runs' in result.stdout and '--seed' in result.stdout
+
+
+@pytest.mark.parametrize('vessel, family', [('kvlcc2_hsva', 'mmg'), ('otter', 'fossen')])
+def test_another_family_vessel_is_simulated_in_its_own_vectors(tmp_path, vessel, family):
+    out = tmp_path / vessel
+    result = run_cli('--vessel', vessel, '--runs', 2, '--hours', 30 / 3600, '--out', out,
+                     '--quiet')
+    assert result.returncode == 0, result.stderr
+    ds = read_dataset(out)
+    boat = load_vessel(vessel)
+    assert ds.vessel.name == vessel and ds.vessel.dataset_columns == boat.dataset_columns
+    assert ds.manifest['provenance']['config']['physics']['family'] == family
+    table = ds.load(ds.run_ids()[0])
+    assert len(table) == 301                                 # 30 s at the vessel's 10 Hz
+    assert not {'p', 'phi', 'wind_speed'} & set(table.columns)
+    for a in boat.actuators:                                 # orders within the vessel's range
+        assert a.low <= table[a.name].min() and table[a.name].max() <= a.high + 1.0
+    assert table['u'].mean() > 0.5
+
+
+def test_a_vessel_without_a_scenario_gets_one_line(tmp_path):
+    result = run_cli('--vessel', 'snuboat', '--runs', 1, '--hours', 0.01, '--out', tmp_path / 'x')
+    assert result.returncode == 1 and result.stderr.count('\n') == 1
+    assert "vessel 'snuboat'" in result.stderr and 'names no physics file' in result.stderr

@@ -7,7 +7,7 @@ from hybrid_models.toy import write_toy_dataset
 from vessel_datasets.format import read_dataset
 from vessel_diagnosis import cli_workflow
 from vessel_diagnosis.workflow import AUGMENTED, LSTM, NOMINAL, augmented_physics_file
-from vessel_physics.terms import PRO_TERMS, SIMULATOR_TERMS
+from vessel_physics.patrol import PRO_TERMS, SIMULATOR_TERMS
 
 ROOT = Path(__file__).resolve().parents[2]
 CONFIGS = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config'

@@ -19,7 +19,7 @@ setup(
     zip_safe=True,
     maintainer='hybrid-ship maintainers',
     maintainer_email='maintainers@hybrid-ship.dev',
-    description='ROS 2 node running the patrol-vessel simulator.',
+    description='ROS 2 node simulating a vessel of any physics family (patrol boat by default).',
     license='Apache-2.0',
     entry_points={'console_scripts': ['simulator = ship_sim_node.node:main']},
 )

@@ -30,9 +30,9 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from vessel_datasets.format import read_dataset  # noqa: E402
-from vessel_physics import mmg  # noqa: E402
-from vessel_physics.params import config_dir  # noqa: E402
-from vessel_physics.zigzag import overshoots  # noqa: E402
+from vessel_physics import integrator  # noqa: E402
+from vessel_physics.mmg.zigzag import overshoots  # noqa: E402
+from vessel_physics.physics_file import load_physics  # noqa: E402
 
 STATES = ('u', 'v', 'r')
 SUBSTEPS = 4
@@ -50,9 +50,9 @@ def rms(a, axis=None):
     return np.sqrt(np.mean(np.square(a), axis=axis))
 
 
-def free_run(params, z0, controls, dt):
+def free_run(physics, z0, controls, dt):
     """Return the states (T, 3) from z0 under the controls (T-1, 2), held per sample."""
-    return mmg.simulate(params, z0, controls, dt, SUBSTEPS)
+    return integrator.free_run(physics.derivative, z0, controls, dt, SUBSTEPS)
 
 
 def heading(r, psi0, dt):
@@ -73,7 +73,7 @@ def reversals(delta, dt):
             if rate[moving[i]] != rate[moving[i - 1]]]
 
 
-def analyse(params, runs, dt):
+def analyse(physics, runs, dt):
     """Return every figure for one parameter set."""
     one_step, persistence, free_err, windows_err = [], [], [], []
     per_run, departures, after, elsewhere = {}, {s: [] for s in STATES}, [], []
@@ -81,14 +81,14 @@ def analyse(params, runs, dt):
     for run_id, table in runs.items():
         z = table[list(STATES)].to_numpy()
         c = table[['n', 'delta']].to_numpy()
-        pred = mmg.simulate(params, z[:-1], c[:-1, None, :], dt, SUBSTEPS)[:, -1]
+        pred = free_run(physics, z[:-1], c[:-1, None, :], dt)[:, -1]
         one_step.append(pred - z[1:])
         persistence.append(z[:-1] - z[1:])
-        free = free_run(params, z[0], c[:-1], dt)
+        free = free_run(physics, z[0], c[:-1], dt)
         err = free - z
         free_err.append(err)
         starts = np.arange(0, len(z) - h, stride)
-        forecasts = free_run(params, z[starts], np.stack([c[k:k + h] for k in starts]), dt)
+        forecasts = free_run(physics, z[starts], np.stack([c[k:k + h] for k in starts]), dt)
         windows_err.extend(forecasts - np.stack([z[k:k + h + 1] for k in starts]))
         psi_meas = table['psi'].to_numpy()
         psi_pred = heading(free[:, 2], psi_meas[0], dt)
@@ -169,7 +169,7 @@ def table_md(results) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def figure(params, runs, dt, path):
+def figure(physics, runs, dt, path):
     """Plot measured against MMG free runs for three zig-zags."""
     chosen = [k for k in runs if k.endswith(('10_10_S', '20_05', '35_05'))]
     fig, axes = plt.subplots(len(chosen), 3, figsize=(13, 3 * len(chosen)), squeeze=False)
@@ -177,7 +177,7 @@ def figure(params, runs, dt, path):
         table = runs[run_id]
         z = table[list(STATES)].to_numpy()
         c = table[['n', 'delta']].to_numpy()
-        free = free_run(params, z[0], c[:-1], dt)
+        free = free_run(physics, z[0], c[:-1], dt)
         t = table['t'].to_numpy()
         for ax, i, unit, scale in ((row[0], 0, 'm/s', 1.0), (row[1], 1, 'm/s', 1.0),
                                    (row[2], 2, 'deg/s', 180 / math.pi)):
@@ -204,10 +204,10 @@ def main(argv):
     results = {}
     for name, file in PARAMETER_SETS.items():
         print(f'MMG ({name}) on {len(runs)} runs', file=sys.stderr)
-        results[name] = analyse(mmg.load_mmg(config_dir() / file), runs, dt)
+        results[name] = analyse(load_physics(file), runs, dt)
     (out / 'mmg_alone.json').write_text(json.dumps(results, indent=1))
     (out / 'mmg_alone.md').write_text(table_md(results))
-    figure(mmg.load_mmg(config_dir() / PARAMETER_SETS[list(PARAMETER_SETS)[-1]]), runs, dt,
+    figure(load_physics(PARAMETER_SETS[list(PARAMETER_SETS)[-1]]), runs, dt,
            out / 'mmg_zigzags.png')
     print(table_md(results))
     return 0

@@ -28,7 +28,7 @@ from torch import nn
 
 from hybrid_models.checkpoint_format import FORMAT, CheckpointError, read_header, vessel_of
 from hybrid_models.models import build_model
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 __all__ = ['FORMAT', 'Checkpoint', 'CheckpointError', 'load_checkpoint', 'load_model',
            'read_header', 'restore_optimizer', 'save_checkpoint', 'upgrade_checkpoint']
@@ -103,7 +103,7 @@ def restore_optimizer(optimizer: torch.optim.Optimizer, ckpt: Checkpoint) -> Non
     optimizer.load_state_dict({'state': state, 'param_groups': saved['param_groups']})
 
 
-def upgrade_checkpoint(path: str | Path, vessel: VehicleSpec) -> None:
+def upgrade_checkpoint(path: str | Path, vessel: Vessel) -> None:
     """
     Give a checkpoint made before vessel files the description of ``vessel``.
 

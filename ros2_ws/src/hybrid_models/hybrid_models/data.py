@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from hybrid_models.vehicle import VehicleSpec
 from vessel_datasets.format import Dataset, read_dataset
+from vessel_description import Vessel
 
 
 @dataclass
@@ -67,7 +67,7 @@ class Windows:
         return Windows(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
 
 
-def load_runs(dataset: Dataset | str | Path, split: str, spec: VehicleSpec) -> list[RunArrays]:
+def load_runs(dataset: Dataset | str | Path, split: str, spec: Vessel) -> list[RunArrays]:
     """Load every run of ``split`` as float32 arrays in the vehicle's vector order."""
     ds = dataset if isinstance(dataset, Dataset) else read_dataset(dataset)
     runs = []
@@ -84,7 +84,7 @@ def load_runs(dataset: Dataset | str | Path, split: str, spec: VehicleSpec) -> l
 
 
 def checked_vessel(dataset: Dataset | str | Path, checkpoints: list[tuple[object, dict]],
-                   names: list | None = None) -> VehicleSpec:
+                   names: list | None = None) -> Vessel:
     """
     Return the dataset's vessel, refused unless every checkpoint was made for the same one.
 
@@ -95,7 +95,7 @@ def checked_vessel(dataset: Dataset | str | Path, checkpoints: list[tuple[object
     vessel = ds.vessel
     for i, (_, cfg) in enumerate(checkpoints):
         label = f'checkpoint {names[i]}' if names else f'checkpoint {i}'
-        vessel.check_compatible(VehicleSpec.from_dict(cfg['vehicle'], source=label),
+        vessel.check_compatible(Vessel.from_dict(cfg['vehicle'], source=label),
                                 label)
     return vessel
 

@@ -37,7 +37,7 @@ from hybrid_models.checkpoint_format import CheckpointError, read_model_arrays, 
 from hybrid_models.hybrid_step import hybrid_step, lstm_layers, lstm_stack, step_weights
 from hybrid_models.physical import PhysicalModel, build_physical
 from hybrid_models.physical.base import part
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 
 @dataclass(frozen=True)
@@ -97,7 +97,7 @@ class Forecaster:
     Build one with ``from_checkpoint`` (serving) or ``from_model`` (a torch model).
     """
 
-    def __init__(self, spec: VehicleSpec, model_config: dict, physical: PhysicalModel,
+    def __init__(self, spec: Vessel, model_config: dict, physical: PhysicalModel,
                  state: dict, relative_threshold: float | None = None, dtype=np.float32,
                  model_id: str = '', config: dict | None = None):
         jax = jax_module()

@@ -24,7 +24,7 @@ from hybrid_models.metrics import forecast_metrics, normalized_rmse_sum
 from hybrid_models.models import predict
 from hybrid_models.nets import HybridModel, as_tensor
 from hybrid_models.physical import PhysicalModel
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 
 @dataclass
@@ -60,7 +60,7 @@ def test_windows(runs: list[RunArrays], window: int, horizon: int, stride: int,
     return forecast_windows(runs, window, horizon, stride, target)
 
 
-def evaluate_model(label: str, model: nn.Module, windows: Windows, spec: VehicleSpec,
+def evaluate_model(label: str, model: nn.Module, windows: Windows, spec: Vessel,
                    state_std: np.ndarray) -> Evaluated:
     """Forecast every window and compute the metrics."""
     pred = predict(model, windows)
@@ -69,7 +69,7 @@ def evaluate_model(label: str, model: nn.Module, windows: Windows, spec: Vehicle
     return Evaluated(label, pred, metrics)
 
 
-def threshold_sweep(model: HybridModel, windows: Windows, spec: VehicleSpec,
+def threshold_sweep(model: HybridModel, windows: Windows, spec: Vessel,
                     state_std: np.ndarray, thresholds) -> list[dict]:
     """
     Metrics of a hybrid constrained at each relative threshold (None = unconstrained).

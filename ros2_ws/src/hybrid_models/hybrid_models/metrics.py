@@ -30,13 +30,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 Z95 = 1.959963984540054
 REPORTED_POINTS = 4   # the horizon profile reports errors at every quarter of the horizon
 
 
-def dead_reckoning(z: np.ndarray, spec: VehicleSpec) -> tuple[np.ndarray, np.ndarray]:
+def dead_reckoning(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]:
     """
     Integrate states (..., H, n_state) into a track from the origin, heading 0 (module doc).
 
@@ -54,12 +54,12 @@ def dead_reckoning(z: np.ndarray, spec: VehicleSpec) -> tuple[np.ndarray, np.nda
     return xy, heading
 
 
-def positions(z: np.ndarray, spec: VehicleSpec) -> np.ndarray:
+def positions(z: np.ndarray, spec: Vessel) -> np.ndarray:
     """Return only the track (..., H, 2) in m of ``dead_reckoning``."""
     return dead_reckoning(z, spec)[0]
 
 
-def trajectory_errors(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec) -> np.ndarray:
+def trajectory_errors(pred: np.ndarray, true: np.ndarray, spec: Vessel) -> np.ndarray:
     """Distance (B, H) in m between predicted and true positions at every step."""
     with np.errstate(invalid='ignore', over='ignore'):
         return np.linalg.norm(positions(pred, spec) - positions(true, spec), axis=-1)
@@ -69,7 +69,7 @@ def _finite(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
 
 
-def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: VehicleSpec,
+def forecast_metrics(pred: np.ndarray, true: np.ndarray, spec: Vessel,
                      minute: int | None = None, state_std: np.ndarray | None = None) -> dict:
     """
     Every number of one model's forecasts (B, H, n_state) against the truth.
@@ -127,7 +127,7 @@ class StepErrors:
     count: int             # forecasts
 
     @classmethod
-    def of(cls, pred: np.ndarray, true: np.ndarray, spec: VehicleSpec) -> StepErrors:
+    def of(cls, pred: np.ndarray, true: np.ndarray, spec: Vessel) -> StepErrors:
         """Sum the errors of forecasts (B, H, n_state) against the truth."""
         with np.errstate(invalid='ignore', over='ignore'):
             sse = ((np.asarray(pred, np.float64) - true) ** 2).sum(axis=0)
@@ -156,7 +156,7 @@ class StepErrors:
         return normalized_rmse_sum_of(self.sse.sum(axis=0), self.count * len(self.sse),
                                       state_std)
 
-    def profile(self, spec: VehicleSpec, steps: list[int] | None = None,
+    def profile(self, spec: Vessel, steps: list[int] | None = None,
                 state_std: np.ndarray | None = None) -> dict:
         """
         Return the errors at ``steps`` (default ``reported_steps``).

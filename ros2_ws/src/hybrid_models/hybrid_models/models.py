@@ -10,12 +10,12 @@ from hybrid_models.data import Windows
 from hybrid_models.nets import HybridModel, LSTMBaseline, as_tensor, module_device
 from hybrid_models.physical import build_physical
 from hybrid_models.qlag import QLag
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 MODEL_KINDS = ('qlag', 'lstm', 'hybrid')
 
 
-def build_model(cfg: dict, spec: VehicleSpec) -> nn.Module:
+def build_model(cfg: dict, spec: Vessel) -> nn.Module:
     """Build an untrained model of the described kind and architecture."""
     kind = cfg.get('kind')
     if kind == 'qlag':

@@ -30,7 +30,7 @@ from hybrid_models.bound import half_width, is_constant, schedule_of, step_bound
 from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weights
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import PhysicalModel
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 CORRECTION_INITS = ('zero', 'random')
 
@@ -38,7 +38,7 @@ CORRECTION_INITS = ('zero', 'random')
 class _Normalized(nn.Module):
     """Holds the normalization buffers shared by the recurrent models."""
 
-    def __init__(self, spec: VehicleSpec):
+    def __init__(self, spec: Vessel):
         super().__init__()
         self.spec = spec
         for name, dim in (('state', spec.n_state), ('control', spec.n_control)):
@@ -142,7 +142,7 @@ class LSTMBaseline(_Normalized):
 
     kind = 'lstm'
 
-    def __init__(self, spec: VehicleSpec, hidden: int = 64, layers: int = 2,
+    def __init__(self, spec: Vessel, hidden: int = 64, layers: int = 2,
                  dropout: float = 0.25):
         super().__init__(spec)
         self.hidden, self.layers, self.dropout = hidden, layers, dropout
@@ -179,7 +179,7 @@ class HybridModel(_Normalized):
 
     kind = 'hybrid'
 
-    def __init__(self, spec: VehicleSpec, physical: PhysicalModel, hidden: int = 64,
+    def __init__(self, spec: Vessel, physical: PhysicalModel, hidden: int = 64,
                  layers: int = 2, dropout: float = 0.25, bound_mode: str = 'tanh',
                  bound_in_training: bool = False, correction_init: str = 'zero'):
         super().__init__(spec)

@@ -16,7 +16,7 @@ from torch import nn
 
 from hybrid_models.data import RunArrays
 from hybrid_models.physical.regression import ridge_lstsq
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 
 class QLag(nn.Module):
@@ -24,7 +24,7 @@ class QLag(nn.Module):
 
     kind = 'qlag'
 
-    def __init__(self, spec: VehicleSpec, lag: int = 4, ridge: float = 1e-8):
+    def __init__(self, spec: Vessel, lag: int = 4, ridge: float = 1e-8):
         super().__init__()
         if lag < 1:
             raise ValueError(f'lag must be >= 1, got {lag}')

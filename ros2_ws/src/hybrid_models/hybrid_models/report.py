@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hybrid_models.metrics import positions, trajectory_errors  # noqa: E402
-from hybrid_models.vehicle import VehicleSpec  # noqa: E402
+from vessel_description import Vessel  # noqa: E402
 
 # Decimals per unit, as in the paper's table.
 DECIMALS = {'m/s': 3, 'rad/s': 4, 'rad': 4}
@@ -31,7 +31,7 @@ def trajectory_cell(traj: dict) -> str:
     return f'{mean:.{d}f} ± {_fmt(ci, d)}'
 
 
-def markdown_table(rows: list[dict], spec: VehicleSpec) -> str:
+def markdown_table(rows: list[dict], spec: Vessel) -> str:
     """
     Rows of {'label', 'metrics'}: per-state RMSE and the trajectory error.
 
@@ -72,7 +72,7 @@ def _with_spread(value, spread, decimals: int) -> str:
     return cell if spread is None or value is None else f'{cell} ± {spread:.{decimals}f}'
 
 
-def plot_states(path: Path, spec: VehicleSpec, true: np.ndarray, preds: dict[str, np.ndarray],
+def plot_states(path: Path, spec: Vessel, true: np.ndarray, preds: dict[str, np.ndarray],
                 title: str) -> None:
     """One forecast: each state over time, truth and every model."""
     t = np.arange(1, len(true) + 1) * spec.dt
@@ -91,7 +91,7 @@ def plot_states(path: Path, spec: VehicleSpec, true: np.ndarray, preds: dict[str
     plt.close(fig)
 
 
-def plot_trajectories(path: Path, spec: VehicleSpec, true: np.ndarray,
+def plot_trajectories(path: Path, spec: Vessel, true: np.ndarray,
                       preds: dict[str, np.ndarray], title: str) -> None:
     """One forecast's integrated paths from the origin (x north/forward, y east)."""
     fig, ax = plt.subplots(figsize=(6, 6))
@@ -113,7 +113,7 @@ def plot_trajectories(path: Path, spec: VehicleSpec, true: np.ndarray,
     plt.close(fig)
 
 
-def plot_error_per_minute(path: Path, spec: VehicleSpec, true: np.ndarray,
+def plot_error_per_minute(path: Path, spec: Vessel, true: np.ndarray,
                           preds: dict[str, np.ndarray], minute: int = 60) -> None:
     """Boxplots of each forecast's mean trajectory error within each minute."""
     fig, ax = plt.subplots(figsize=(10, 4))
@@ -143,7 +143,7 @@ def plot_error_per_minute(path: Path, spec: VehicleSpec, true: np.ndarray,
     plt.close(fig)
 
 
-def plot_position_curves(path: Path, spec: VehicleSpec,
+def plot_position_curves(path: Path, spec: Vessel,
                          curves: dict[str, list[list[float]]]) -> None:
     """Mean position error over the horizon per model: the seeds' mean, their range shaded."""
     fig, ax = plt.subplots(figsize=(8, 4))
@@ -163,7 +163,7 @@ def plot_position_curves(path: Path, spec: VehicleSpec,
     plt.close(fig)
 
 
-def plot_threshold(path: Path, spec: VehicleSpec, sweeps: dict[str, list[dict]],
+def plot_threshold(path: Path, spec: Vessel, sweeps: dict[str, list[dict]],
                    title: str) -> None:
     """
     Per-state RMSE and trajectory error against the relative threshold, one line per sweep.

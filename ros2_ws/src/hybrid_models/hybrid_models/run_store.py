@@ -22,8 +22,8 @@ import numpy as np
 import pyarrow.parquet as pq
 
 from hybrid_models.streaming import Moments, RowSample
-from hybrid_models.vehicle import VehicleSpec
 from vessel_datasets.format import TRUE_SUFFIX, Dataset, DatasetError
+from vessel_description import Vessel
 
 CHUNK_ROWS = 65_536  # rows per Parquet batch and per sequential read (~4 MB at 16 columns)
 DTYPE = np.float32
@@ -97,7 +97,7 @@ class SplitStore:
     pairs: RowSample    # rows [z_t | c_t | z_t+1]
 
 
-def run_columns(ds: Dataset, run_id: str, spec: VehicleSpec) -> list[str]:
+def run_columns(ds: Dataset, run_id: str, spec: Vessel) -> list[str]:
     """Columns giving [z | c | z_true] (z again where the run has no noise-free truth)."""
     true_cols = [s + TRUE_SUFFIX for s in spec.state_names]
     entry = next(r for r in ds.manifest['runs'] if r['id'] == run_id)
@@ -126,7 +126,7 @@ def stream_run(ds: Dataset, run_id: str, columns: list[str]) -> Iterator[np.ndar
 MIRROR_SUFFIX = '~mirror'   # run id of a run's port/starboard mirror image
 
 
-def mirror_rows(spec: VehicleSpec):
+def mirror_rows(spec: Vessel):
     """Return the map of rows [z | c | z_true] onto their mirror image (vessel's ``mirror``)."""
     state_signs, sources, control_signs = spec.mirror_maps()
     ns = spec.n_state
@@ -136,7 +136,7 @@ def mirror_rows(spec: VehicleSpec):
     return lambda rows: rows[..., columns] * signs
 
 
-def build_split(ds: Dataset, split: str, spec: VehicleSpec, cache: Path, sample_rows: int,
+def build_split(ds: Dataset, split: str, spec: Vessel, cache: Path, sample_rows: int,
                 seed: int, write: bool = True, mirror: bool = False) -> SplitStore:
     """
     Stream every run of ``split`` once: cache file, statistics, sample of one-step pairs.

@@ -18,8 +18,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybrid_models.vehicle import load_vessel
 from vessel_datasets.format import write_dataset
+from vessel_description import load_vessel
 
 SUBSTEPS = 10
 # Same vectors and rate as the simulator's vessel: the toy stands in for its datasets.

@@ -31,7 +31,6 @@ import math
 import numpy as np
 
 from vessel_datasets.extract import TopicSamples
-from vessel_datasets.fields import compile_getter
 from vessel_datasets.quantities import channel_delays, channel_methods, derive, to_columns
 from vessel_datasets.resample import sample
 from vessel_datasets.topic_map import TopicMap
@@ -40,33 +39,6 @@ from .time_line import ReAnchor, TimeLines
 
 POSE = ('x', 'y', 'psi')
 STATE_ENTRY = 'surge'  # its topic's newest sample ends the window
-
-
-def channel_reader(topic_map: TopicMap, topic: str):
-    """
-    Return a function reading a topic's channel values from one of its messages.
-
-    It takes any message object with the mapped fields (rclpy or rosbags) and returns
-    ``{channel: scale * field + offset}``. An element a message does not carry (a joint
-    it does not name) is left out, so the stream completes it from its last sample; a
-    message carrying none of the topic's channels raises ValueError.
-    """
-    leaves = [leaf for leaf in topic_map.leaves() if leaf.topic == topic]
-    reads = [(leaf.channel, compile_getter(leaf.path, absent=None), leaf.scale, leaf.offset)
-             for leaf in leaves]
-    fields = ', '.join(leaf.path for leaf in leaves)
-
-    def read(msg) -> dict[str, float]:
-        out = {}
-        for channel, get, scale, offset in reads:
-            value = get(msg)
-            if value is not None:
-                out[channel] = scale * float(value) + offset
-        if not out:
-            raise ValueError(f'carries none of the mapped fields ({fields})')
-        return out
-
-    return read
 
 
 @dataclass

@@ -31,7 +31,6 @@ from __future__ import annotations
 from array import array
 from dataclasses import dataclass
 from functools import partial
-import importlib
 import math
 import os
 from pathlib import Path
@@ -54,7 +53,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from hybrid_models.checkpoint_format import CheckpointError
 from hybrid_models.engine import Forecaster
 from hybrid_predictor.health import Health
-from hybrid_predictor.input_window import InputWindow, channel_reader
+from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
     PLAN_CONTROLS,
@@ -73,6 +72,7 @@ from hybrid_predictor.vessel_source import served_vessel
 from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
 from hybrid_predictor_interfaces.srv import Predict
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
+from vessel_datasets.topic_messages import channel_reader
 from vessel_description import VesselError
 from vessel_physics import frames
 from vessel_ros_bridge import messages
@@ -197,7 +197,7 @@ class PredictorNode(Node):
         inputs = MutuallyExclusiveCallbackGroup()
         depth = p['input_queue_depth']
         self.readers = {}
-        for topic, msg_class in input_types(self.topic_map).items():
+        for topic, msg_class in messages.message_types(self.topic_map).items():
             self.readers[topic] = channel_reader(self.topic_map, topic)
             self.create_subscription(msg_class, self.resolved[topic],
                                      partial(self._on_input, topic), depth,
@@ -635,25 +635,6 @@ def executor_for(node: PredictorNode) -> MultiThreadedExecutor:
     group and the "busy" answers, so no group ever waits for a free thread.
     """
     return MultiThreadedExecutor(num_threads=node.p['service_capacity'] + 4)
-
-
-def input_types(topic_map) -> dict:
-    """Message class of every input topic, from the ``type`` its map entries name."""
-    out = {}
-    for topic in topic_map.topics:
-        names = {e.msgtype for e in topic_map.entries if e.topic == topic and e.msgtype}
-        if len(names) != 1:
-            raise TopicMapError(f'vessel {topic_map.vessel.name!r}: topic {topic} needs one '
-                                f'type (type: pkg/msg/Name on one of its entries) for the '
-                                f'predictor to subscribe; got {sorted(names) or "none"}')
-        package, _, name = names.pop().split('/')
-        try:
-            out[topic] = getattr(importlib.import_module(f'{package}.msg'), name)
-        except (ImportError, AttributeError):
-            raise TopicMapError(f'topic {topic}: message type {package}/msg/{name} is not '
-                                f'installed (build and source its interface package)') \
-                from None
-    return out
 
 
 def main(args=None) -> int:

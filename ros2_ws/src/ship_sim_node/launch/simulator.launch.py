@@ -2,9 +2,10 @@
 Launch the vessel simulator alone.
 
 ``ros2 launch ship_sim_node simulator.launch.py [namespace:=vessel] [use_sim_time:=false]
-[frame_prefix:=] [real_time_factor:=1.0] [seed:=0] [publish_clock:=true]
-[publish_truth:=false]``: the simulator publishes NAMESPACE/odom, NAMESPACE/actuators,
-NAMESPACE/wind (and NAMESPACE/odom_true) and the global /clock.
+[frame_prefix:=] [vessel:=] [real_time_factor:=1.0] [seed:=0] [publish_clock:=true]
+[publish_truth:=false]``: the simulator publishes the topics of the vessel's recording
+map under NAMESPACE (the patrol boat: NAMESPACE/odom, NAMESPACE/actuators, NAMESPACE/wind,
+and NAMESPACE/odom_true) and the global /clock.
 """
 
 from launch import LaunchDescription
@@ -19,7 +20,7 @@ from vessel_ros_bridge.launch_args import (
 )
 
 PACKAGE, CONFIG = 'ship_sim_node', 'simulator.yaml'
-ARGUMENTS = ('real_time_factor', 'seed', 'publish_clock', 'publish_truth')
+ARGUMENTS = ('vessel', 'real_time_factor', 'seed', 'publish_clock', 'publish_truth')
 
 
 def generate_launch_description():

@@ -9,27 +9,26 @@ last good command keeps holding until its own timeout.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 import math
 
 
 @dataclass(frozen=True)
 class CommandLimits:
-    """Accepted set-point ranges: shaft speed in [0, shaft_max] rad/s, |rudder| <= rad."""
+    """Accepted set-point range [low, high] of each actuator, by name (its vessel file's)."""
 
-    shaft_max: float
-    rudder_max: float
+    ranges: Mapping[str, tuple[float, float]]
 
     def violation(self, key: str, value: float) -> str | None:
         """Return why ``value`` is not an acceptable set-point for ``key``, or None."""
+        if key not in self.ranges:
+            return f'unknown actuator {key!r}'
         if not math.isfinite(value):
             return f'{key}={value} is not finite'
-        if key == 'n' and not 0.0 <= value <= self.shaft_max:
-            return f'n={value:.4g} rad/s outside [0, {self.shaft_max:.4g}]'
-        if key in ('delta_port', 'delta_stbd') and abs(value) > self.rudder_max:
-            return f'{key}={value:.4g} rad outside [-{self.rudder_max:.4g}, {self.rudder_max:.4g}]'
-        if key not in ('n', 'delta_port', 'delta_stbd'):
-            return f'unknown actuator {key!r}'
+        low, high = self.ranges[key]
+        if not low <= value <= high:
+            return f'{key}={value:.4g} outside [{low:.4g}, {high:.4g}]'
         return None
 
 

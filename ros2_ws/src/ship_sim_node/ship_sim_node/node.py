@@ -1,14 +1,17 @@
 """
-The simulator node: a thin ROS 2 adapter around ``vessel_physics.simulator``.
+The simulator node: a thin ROS 2 adapter around ``vessel_physics.simulation``.
 
-Publishes, once per simulated second (REP-103/105 frames, docs/conventions.md):
-``odom`` (nav_msgs/Odometry, measured), ``actuators`` (sensor_msgs/JointState), ``wind``
-(geometry_msgs/Vector3Stamped, measured true wind), the global ``/clock`` and,
-optionally, ``odom_true`` (noise-free). Commands on ``cmd`` (JointState) override the
-simulated operator while they keep arriving. ``~/reset`` (std_srvs/Trigger) starts the
-run again. Names are relative to the node's namespace, ``/vessel`` unless moved
-(``-r __ns:=/boat1``). All numerics live in
-``vessel_physics``; this module only moves values between it and messages.
+Simulates one vessel of any family -- the patrol boat unless ``vessel`` (a vessel file's
+name or path) or ``scenario`` (a simulation YAML) says otherwise -- and publishes, once
+per output period, what its sensors would: the topics, message types, fields, frames
+and scales of the vessel file's recording map (``recordings.topics``, written by
+``vessel_datasets.topic_messages``), plus the global ``/clock`` and, optionally, a
+noise-free copy of the state topic (``<state topic>_true``). Commands on ``cmd`` (a
+message of the actuators' topic type, read with the same map entries: for the patrol
+boat a JointState) override the simulated operator while they keep arriving.
+``~/reset`` (std_srvs/Trigger) starts the run again. Topics the vessel file names under
+``/vessel`` are relative to the node's namespace (``-r __ns:=/boat1``). All numerics
+live in ``vessel_physics``; this module only moves values between it and messages.
 """
 
 from __future__ import annotations
@@ -16,24 +19,26 @@ from __future__ import annotations
 import sys
 import time
 
-from geometry_msgs.msg import Vector3Stamped
-from nav_msgs.msg import Odometry
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock as ClockMsg
-from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ship_sim_node.command_gate import CommandGate, CommandLimits
-from vessel_physics.config import ConfigError, load_config
-from vessel_physics.simulator import Simulator
+from vessel_datasets.topic_map import ACTUATOR_PREFIX, TopicMapError, topic_map_for
+from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
+from vessel_physics.errors import ConfigError
+from vessel_physics.simulation.config import load_simulation
+from vessel_physics.simulation.simulator import Simulator
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.lifecycle import run_node
+from vessel_ros_bridge.names import node_topic
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
 
 NODE_NAME = 'simulator'
+TRUE_SUFFIX = '_true'
 
 
 class SimulatorNode(Node):
@@ -44,23 +49,31 @@ class SimulatorNode(Node):
         params = declare_from_specs(
             self, load_specs(package_config('ship_sim_node', 'simulator.yaml')))
         self._params = params
-        config = load_config(params['scenario'] or None)
+        config = load_simulation(params['scenario'] or None, params['vessel'] or None)
+        self.vessel = config.vessel
         self.sim = Simulator(config, n_runs=1, seed=params['seed'],
                              run_offset=params['run_index'])
-        vessel = config.vessel
-        self.gate = CommandGate(CommandLimits(vessel.shaft_max_speed, vessel.rudder_max_angle),
-                                params['command_timeout'])
+        self.gate = CommandGate(CommandLimits({name: (low, high) for name, (
+            low, high, _, _) in config.actuators.items()}), params['command_timeout'])
         self.epoch = params['start_time'] or time.time()
         self.output_period = 1.0 / config.output_rate_hz
 
-        self.odom_pub = self.create_publisher(Odometry, messages.ODOM_TOPIC, 10)
-        self.truth_pub = (self.create_publisher(Odometry, messages.ODOM_TRUE_TOPIC, 10)
+        topic_map = topic_map_for(self.vessel)
+        types = messages.message_types(topic_map)
+        self.writer = MessageWriter(topic_map, types, params['world_frame'],
+                                    params['body_frame'])
+        self.publishers_ = {topic: self.create_publisher(types[topic], node_topic(topic), 10)
+                            for topic in self.writer.topics}
+        state_topic = self.writer.topics[-1]
+        self.truth_pub = (self.create_publisher(types[state_topic],
+                                                node_topic(state_topic) + TRUE_SUFFIX, 10)
                           if params['publish_truth'] else None)
-        self.actuator_pub = self.create_publisher(JointState, messages.ACTUATORS_TOPIC, 10)
-        self.wind_pub = self.create_publisher(Vector3Stamped, messages.WIND_TOPIC, 10)
         self.clock_pub = (self.create_publisher(ClockMsg, '/clock', 10)
                           if params['publish_clock'] else None)
-        self.create_subscription(JointState, messages.COMMAND_TOPIC, self._on_command, 10)
+        command_topic = next(e.topic for e in topic_map.entries if e.group == 'actuators')
+        self._read_command = channel_reader(topic_map, command_topic)
+        self.create_subscription(types[command_topic], messages.COMMAND_TOPIC,
+                                 self._on_command, 10)
         self.create_service(Trigger, '~/reset', self._on_reset)
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
@@ -68,8 +81,9 @@ class SimulatorNode(Node):
         self._start_timer(params['real_time_factor'])
         self._publish(self.sim.sample())
         self.get_logger().info(
-            f'simulating seed {params["seed"]} run {params["run_index"]} at '
-            f'{params["real_time_factor"]:g}x real time')
+            f'simulating {self.vessel.name} ({config.physics.family.title}) seed '
+            f'{params["seed"]} run {params["run_index"]} at {params["real_time_factor"]:g}x '
+            f'real time on {", ".join(self.writer.topics)}')
 
     # ------------------------------------------------------------------ stepping
     def _start_timer(self, real_time_factor: float) -> None:
@@ -87,23 +101,25 @@ class SimulatorNode(Node):
     def _publish(self, sample) -> None:
         values = {key: float(value[0]) for key, value in sample.items()}
         stamp = messages.stamp_from_seconds(self.epoch + values['t'])
-        world, body = self._params['world_frame'], self._params['body_frame']
         if self.clock_pub is not None:
             self.clock_pub.publish(ClockMsg(clock=stamp))
-        # The state goes last: a consumer holding a state has the whole sample.
-        self.actuator_pub.publish(messages.joint_state_from_actuators(values, stamp))
-        self.wind_pub.publish(messages.wind_from_measurement(
-            values['wind_speed'], values['wind_dir_cos'], values['wind_dir_sin'], stamp, body))
+        channels = channel_values(values, self.writer.topic_map)
+        # The state topic goes last: a consumer holding a state has the whole sample.
         if self.truth_pub is not None:
-            truth = {key: values[key + '_true'] for key in ('u', 'v', 'p', 'r', 'phi', 'psi',
-                                                             'x', 'y')}
-            self.truth_pub.publish(messages.odometry_from_state(truth, stamp, world, body))
-        self.odom_pub.publish(messages.odometry_from_state(values, stamp, world, body))
+            truth = {**values, **{k: values[k + TRUE_SUFFIX] for k in self.sim.true_keys}}
+            self.truth_pub.publish(self.writer.message(
+                self.writer.topics[-1], channel_values(truth, self.writer.topic_map), stamp))
+        for topic, publisher in self.publishers_.items():
+            publisher.publish(self.writer.message(topic, channels, stamp))
 
     # ------------------------------------------------------------------ inputs
-    def _on_command(self, msg: JointState) -> None:
+    def _on_command(self, msg) -> None:
         try:
-            command = messages.actuators_from_joint_state(msg)
+            read = self._read_command(msg)
+            command = {k[len(ACTUATOR_PREFIX):]: v for k, v in read.items()
+                       if k.startswith(ACTUATOR_PREFIX)}
+            if not command:
+                raise ValueError(f'names none of the actuators {list(self.sim.actuators)}')
         except ValueError as exc:
             reason = str(exc)
         else:
@@ -131,7 +147,7 @@ class SimulatorNode(Node):
 
 def main(args=None) -> int:
     """Run the simulator node until interrupted; exit 2 with one line on a bad config."""
-    return run_node(SimulatorNode, NODE_NAME, (ConfigError, ValueError), args)
+    return run_node(SimulatorNode, NODE_NAME, (ConfigError, TopicMapError, ValueError), args)
 
 
 if __name__ == '__main__':

@@ -60,10 +60,11 @@ def parse_args(argv=None):
 
 def make_plan(seed: int, seconds: int) -> np.ndarray:
     """Return set-points (seconds, 3): n (rad/s), delta_port, delta_stbd (rad) per second."""
-    from vessel_physics.config import load_config
-    from vessel_physics.operator import Operator
+    from vessel_physics.simulation.config import load_simulation
+    from vessel_physics.simulation.operator import Operator
 
-    operator = Operator([np.random.default_rng(seed)], load_config().operator)
+    config = load_simulation()
+    operator = Operator([np.random.default_rng(seed)], config.operator, config.vessel)
     return np.array([np.concatenate(operator.setpoints(float(t))) for t in range(seconds)])
 
 

@@ -17,6 +17,7 @@ from operator import attrgetter
 import re
 from typing import Any
 
+import numpy as np
 from rosbags.typesys.store import Nodetype
 
 NUMERIC = frozenset({'bool', 'byte', 'char', 'int8', 'int16', 'int32', 'int64', 'uint8',
@@ -143,6 +144,59 @@ def compile_getter(path: str, absent: Any = math.nan) -> Callable[[Any], Any]:
         return obj
 
     return get
+
+
+def set_path(msg, path: str, value: float) -> None:
+    """
+    Write ``value`` at ``path`` of a message (the inverse of ``compile_getter``).
+
+    An element indexed by name (``velocity[propeller]``) goes to that name's place in the
+    ``name`` list beside the field, appending the name where it is missing; arrays grow
+    with zeros to the index they need (and stay numpy arrays where they were).
+    """
+    segments = parse_path(path)
+    obj = msg
+    for i, seg in enumerate(segments):
+        last = i == len(segments) - 1
+        if seg.key is None:
+            if last:
+                setattr(obj, seg.attr, value)
+            else:
+                obj = getattr(obj, seg.attr)
+            continue
+        if isinstance(seg.key, str):
+            names = list(getattr(obj, NAME_LIST))
+            if seg.key not in names:
+                names.append(seg.key)
+                setattr(obj, NAME_LIST, names)
+            index = names.index(seg.key)
+        else:
+            index = seg.key
+        old = getattr(obj, seg.attr)
+        if not last:
+            obj = old[index]
+            continue
+        array = list(old)
+        array += [0.0] * (index + 1 - len(array))
+        array[index] = value
+        setattr(obj, seg.attr, np.asarray(array, float) if isinstance(old, np.ndarray)
+                else array)
+
+
+def pad_named(msg, path: str) -> None:
+    """Grow the array a by-name ``path`` ends in to the length of its ``name`` list."""
+    *parents, last = parse_path(path)
+    if not isinstance(last.key, str) or any(seg.key is not None for seg in parents):
+        return
+    obj = msg
+    for seg in parents:
+        obj = getattr(obj, seg.attr)
+    old = getattr(obj, last.attr)
+    missing = len(getattr(obj, NAME_LIST)) - len(old)
+    if missing > 0:
+        array = list(old) + [0.0] * missing
+        setattr(obj, last.attr, np.asarray(array, float) if isinstance(old, np.ndarray)
+                else array)
 
 
 def stamp_ns(msg) -> int:

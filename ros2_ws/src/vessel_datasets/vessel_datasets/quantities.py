@@ -195,8 +195,8 @@ def earth_to_body(north, east, psi, phi=0.0) -> tuple[np.ndarray, np.ndarray]:
     R(psi) (u, v cos phi).
     """
     north, east, psi = (np.asarray(a, float) for a in (north, east, psi))
-    c, s = np.cos(psi), np.sin(psi)
-    return north * c + east * s, (-north * s + east * c) / np.cos(phi)
+    u, v_level = frames.ned_to_body(north, east, psi)
+    return u, v_level / np.cos(phi)
 
 
 def latlon_to_local(lat_deg, lon_deg) -> tuple[np.ndarray, np.ndarray]:

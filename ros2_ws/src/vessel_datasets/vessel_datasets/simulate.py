@@ -1,9 +1,14 @@
 """
-Simulate the patrol vessel and write a dataset (docs/conventions.md format).
+Simulate a vessel and write a dataset (docs/conventions.md format).
 
     python offline/simulate.py --out data/ship                    # the paper's 96 x 1 h
+    python offline/simulate.py --vessel otter --runs 8 --hours 0.1 --out /tmp/otter
     python offline/simulate.py --config my.yaml --runs 3 --hours 0.1 --seed 7 --out /tmp/ds
     ros2 run vessel_datasets simulate --out data/ship              # the same, installed
+
+The patrol boat is the default; ``--vessel NAME_OR_FILE`` simulates another vessel with
+its shipped scenario (vessel_physics/config/simulation/NAME.yaml) or, with ``--config``,
+overrides the scenario's vessel.
 
 Runs are simulated together, vectorized (in chunks of --chunk runs), with run k drawn
 from the seed sequence (SEED, k): any run can be reproduced alone. Every run is written
@@ -28,9 +33,10 @@ import scipy
 from tqdm import tqdm
 
 from vessel_datasets.format import MANIFEST, DatasetError, write_dataset
-from vessel_datasets.synthetic import simulated_run_table, simulator_vessel
-from vessel_physics.config import ConfigError, default_config_path, load_config
-from vessel_physics.simulator import Simulator
+from vessel_datasets.synthetic import simulated_run_table, simulation_vessel
+from vessel_physics.errors import ConfigError
+from vessel_physics.simulation.config import default_config_path, load_simulation
+from vessel_physics.simulation.simulator import Simulator
 
 TOOL = 'offline/simulate.py'
 VESSEL_PHYSICS_VERSION = '0.1.0'
@@ -64,6 +70,9 @@ def build_parser() -> argparse.ArgumentParser:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--config', type=Path, default=None,
                         help=f'simulation YAML (default {default_config_path()})')
+    parser.add_argument('--vessel', metavar='NAME_OR_FILE',
+                        help="vessel file to simulate (default: the scenario's; the patrol "
+                             'boat)')
     parser.add_argument('--runs', type=positive_int, default=96,
                         help='number of runs (default 96)')
     parser.add_argument('--hours', type=positive_float, default=1.0,
@@ -94,13 +103,13 @@ def run_source(sim: Simulator, j: int, run_index: int, seed: int) -> dict:
 
 def simulate(args) -> dict:
     """Simulate and write the dataset; return the summary."""
-    cfg = load_config(args.config)
+    cfg = load_simulation(args.config, args.vessel)
     out = args.out
     if (out / MANIFEST).exists() and not args.overwrite:
         raise DatasetError(f'{out} already holds a dataset; use --overwrite to replace it')
     seconds = args.hours * 3600.0
     n_periods = int(round(seconds * cfg.output_rate_hz))
-    vessel = simulator_vessel(cfg.output_rate_hz)
+    vessel = simulation_vessel(cfg)
     if n_periods < 1:
         raise ConfigError(f'--hours {args.hours} is shorter than one output period')
     runs, sources = {}, {}
@@ -120,7 +129,7 @@ def simulate(args) -> dict:
     provenance = {
         'tool': TOOL,
         'command': [TOOL] + list(sys.argv[1:]),
-        'config_file': str(args.config or default_config_path()),
+        'config_file': str(args.config) if args.config else cfg.source,
         'config': cfg.to_dict(),
         'seed': args.seed,
         'runs': args.runs,

@@ -1,7 +1,7 @@
 """
 Synthetic recordings of the simulator's topics, for tests, benchmarks and examples.
 
-``simulator_vessel`` and ``simulated_run_table`` turn the batch simulator's output into
+``simulation_vessel`` and ``simulated_run_table`` turn the batch simulator's output into
 dataset tables of its vessel file (``offline/simulate.py``, the diagnosis scenarios).
 
 ``demo_trajectory`` makes a smooth, plausible manoeuvre in the model's frames (NED/FRD,
@@ -27,11 +27,11 @@ from rosbags.typesys.store import Typestore
 
 from vessel_description import Vessel, load_vessel
 from vessel_physics import frames
-from vessel_physics.simulator import TRUE_KEYS
+from vessel_physics.simulation.config import DEFAULT_VESSEL
 
 from .format import TRUE_SUFFIX
 
-SIM_VESSEL = 'patrol_boat'  # the vessel file whose topics the simulator publishes
+SIM_VESSEL = DEFAULT_VESSEL  # the vessel whose topics the simulator publishes by default
 SIM_TOPICS = {
     '/vessel/odom': 'nav_msgs/msg/Odometry',
     '/vessel/actuators': 'sensor_msgs/msg/JointState',
@@ -42,14 +42,15 @@ DEFAULT_START_NS = 1_700_000_000 * 1_000_000_000  # 2023-11-14, an arbitrary fix
 DEFAULT_LOG_DELAY_NS = 2_000_000  # recorders receive a message ~ms after its stamp
 
 
-def simulator_vessel(rate_hz: float) -> Vessel:
-    """Return the simulator's vessel file at a simulation's output rate (Hz)."""
-    return replace(load_vessel(SIM_VESSEL), rate_hz=float(rate_hz))
+def simulation_vessel(config) -> Vessel:
+    """Return a simulation's vessel file at its output rate (``SimConfig``)."""
+    return replace(config.vessel, rate_hz=float(config.output_rate_hz))
 
 
 def simulated_run_table(data: dict, j: int, vessel: Vessel) -> pd.DataFrame:
     """Run ``j`` of a batch simulator result as a dataset table, noise-free truth included."""
-    columns = vessel.dataset_columns + tuple(k + TRUE_SUFFIX for k in TRUE_KEYS)
+    truth = vessel.state_names + ('psi', 'x', 'y')
+    columns = vessel.dataset_columns + tuple(k + TRUE_SUFFIX for k in truth)
     return pd.DataFrame({c: data[c][j] for c in columns})
 
 

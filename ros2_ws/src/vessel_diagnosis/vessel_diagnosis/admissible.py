@@ -8,7 +8,8 @@ rules read the vessel description (``vessel_description.Vessel``), never a vesse
 - no ``wind`` in ``environment``: no candidate of the category ``wind`` and none that
   requires a wind signal (``Candidate.requires``);
 - ``waters: basin``: no ocean current (candidates of kind ``current``);
-- no roll states (p, phi): no candidate acting on K only and none requiring p or phi.
+- no roll states (p, phi): no candidate acting on K only and none requiring p or phi;
+- a family that cannot feel wind or a current (``Family.environment``): none of those.
 """
 
 from __future__ import annotations
@@ -42,9 +43,14 @@ class Exclusion:
                 'reasons': list(self.reasons)}
 
 
-def _reason(cand: Candidate, vessel: Vessel) -> str | None:
+def _reason(cand: Candidate, vessel: Vessel, family) -> str | None:
     """Return why ``vessel`` cannot have ``cand``, or None when it can."""
     needs = set(cand.requires)
+    for effect in ('wind', 'current'):
+        if cand.category == effect and family is not None and \
+                effect not in family.environment:
+            return f'the {family.title} feels no {effect}'
+
     if 'wind' not in vessel.environment and (cand.category == 'wind' or needs & WIND_SIGNALS):
         return (f'the vessel file declares no wind sensor or wind (environment: '
                 f'{list(vessel.environment)})')
@@ -55,11 +61,12 @@ def _reason(cand: Candidate, vessel: Vessel) -> str | None:
     return None
 
 
-def admissible(library: Library, vessel: Vessel) -> tuple[Library, list[Exclusion]]:
+def admissible(library: Library, vessel: Vessel, family=None
+               ) -> tuple[Library, list[Exclusion]]:
     """Return the library reduced to what ``vessel`` can have, and one exclusion a category."""
     kept, out = [], {}
     for cand in library.candidates:
-        why = _reason(cand, vessel)
+        why = _reason(cand, vessel, family)
         if why is None:
             kept.append(cand)
             continue
@@ -69,4 +76,4 @@ def admissible(library: Library, vessel: Vessel) -> tuple[Library, list[Exclusio
             reasons.append(why)
     exclusions = [Exclusion(category, tuple(names), tuple(reasons))
                   for category, (names, reasons) in out.items()]
-    return Library(kept), exclusions
+    return Library(kept, library.family), exclusions

@@ -3,11 +3,14 @@ Simulate "real" recordings with a concealed effect, and the nominal physics that
 
     python offline/simulate_scenario.py --list
     python offline/simulate_scenario.py --scenario fouling --runs 20 --hours 1 --seed 5 --out DIR
+    python offline/simulate_scenario.py --vessel otter --scenario weak_thruster --out DIR
 
-Scenarios (``vessel_diagnosis/config/scenarios.yaml``): the simulator plus an effect the
-nominal physics does not have (a current, hull fouling, missing wind loads, a rudder
-offset; ``control`` has none). Writes a dataset (docs/conventions.md, split 60/10/30 by
-run) and ``DIR/nominal_physics.yaml``: what ``offline/diagnose.py`` and
+Scenarios (``vessel_diagnosis/config/scenarios.yaml``), per vessel -- one of each physics
+family: the patrol boat (default), the KVLCC2 model (MMG), the Otter (Fossen) --: the
+simulator plus an effect the nominal physics does not have (a current, hull fouling,
+missing wind loads, a rudder offset, added resistance, a weak thruster; ``control`` has
+none). Writes a dataset (docs/conventions.md, split 60/10/30 by run) and
+``DIR/nominal_physics.yaml``: what ``offline/diagnose.py`` and
 ``offline/compare_physics.py`` are given. The manifest keeps every run's true sea state,
 wind and current. Exit codes: 0 done, 1 bad scenario or output, 2 bad arguments.
 """
@@ -21,6 +24,7 @@ import time
 from vessel_datasets.format import DatasetError
 from vessel_diagnosis.scenarios import load_scenario_file, simulate_scenario
 from vessel_physics.errors import ConfigError
+from vessel_physics.simulation.config import DEFAULT_VESSEL
 
 
 def main(argv=None) -> int:
@@ -28,38 +32,49 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--scenario', help='scenario name (see --list)')
+    parser.add_argument('--vessel', default=DEFAULT_VESSEL,
+                        help=f'vessel whose scenarios to use (default {DEFAULT_VESSEL})')
     parser.add_argument('--list', action='store_true', help='list the scenarios and exit')
     parser.add_argument('--runs', type=int, default=20, help='number of runs (default 20)')
     parser.add_argument('--hours', type=float, default=1.0, help='hours per run (default 1)')
     parser.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
     parser.add_argument('--out', type=Path, help='output dataset directory')
     args = parser.parse_args(argv)
-    scenarios = load_scenario_file()['scenarios']
+    vessels = load_scenario_file()['vessels']
     if args.list:
-        for name, spec in scenarios.items():
-            print(f'{name:16s} {" ".join(str(spec.get("description", "")).split())}')
+        for vessel, spec in vessels.items():
+            for name, scenario in spec['scenarios'].items():
+                print(f'{vessel:12s} {name:16s} '
+                      f'{" ".join(str(scenario.get("description", "")).split())}')
         return 0
+    if args.vessel not in vessels:
+        print(f'simulate_scenario: error: no scenarios for vessel {args.vessel!r}; vessels '
+              f'with scenarios: {", ".join(vessels)}', file=sys.stderr)
+        return 1
+    scenarios = vessels[args.vessel]['scenarios']
     if not args.scenario or args.out is None:
         parser.error('--scenario and --out are required (or --list)')
     if args.runs < 1 or not args.hours > 0:
         parser.error(f'--runs must be >= 1 and --hours > 0, got {args.runs} and {args.hours}')
     if args.scenario not in scenarios:
-        print(f'simulate_scenario: error: unknown scenario {args.scenario!r}; known: '
-              f'{", ".join(scenarios)}', file=sys.stderr)
+        print(f'simulate_scenario: error: unknown scenario {args.scenario!r} of vessel '
+              f'{args.vessel}; known: {", ".join(scenarios)}', file=sys.stderr)
         return 1
     if args.out.exists() and any(args.out.iterdir()):
         print(f'simulate_scenario: error: {args.out} exists and is not empty; choose a new '
               f'directory', file=sys.stderr)
         return 1
-    print(f'simulating scenario {args.scenario!r}: {args.runs} runs x {args.hours:g} h '
-          f'(seed {args.seed})', file=sys.stderr)
+    print(f'simulating scenario {args.scenario!r} of {args.vessel}: {args.runs} runs x '
+          f'{args.hours:g} h (seed {args.seed})', file=sys.stderr)
     start = time.monotonic()
     try:
-        out = simulate_scenario(args.scenario, args.out, args.runs, args.hours, args.seed)
+        out = simulate_scenario(args.scenario, args.out, args.runs, args.hours, args.seed,
+                                vessel=args.vessel)
     except (ConfigError, DatasetError, OSError) as exc:
         print(f'simulate_scenario: error: {exc}', file=sys.stderr)
         return 1
-    print(json.dumps({'scenario': args.scenario, 'out': str(out), 'runs': args.runs,
+    print(json.dumps({'scenario': args.scenario, 'vessel': args.vessel, 'out': str(out),
+                      'runs': args.runs,
                       'hours': args.hours, 'seed': args.seed,
                       'nominal_physics': str(out / 'nominal_physics.yaml'),
                       'seconds': round(time.monotonic() - start, 1)}))

@@ -1,18 +1,24 @@
 """
 Effects to conceal in simulated "real" recordings (simulator ``extra_forces`` hooks).
 
-Each function has the hook signature of ``vessel_physics.config`` and returns
-[X, Y, K, N] (n_runs, 4) about CO in FRD; parameters come from the ``effects`` section
-of config/scenarios.yaml. They model the effect their own way, not with the candidate
-term the diagnosis will use to name it:
+Each function has the hook signature of ``vessel_physics.simulation.config`` and returns
+the generalized forces (n_runs, n_dof) of its vessel's family; parameters come from the
+``effects`` section of config/scenarios.yaml, which also names the vessel each effect
+applies to and, when not the vessel file's, the physics its simulator runs. They model
+the effect their own way, not with the candidate term the diagnosis will use to name it:
 
-- ``hull_fouling``: the frictional resistance of the ITTC-1957 correlation line,
-  R_F = rho S C_F(Re) u|u| / 2 with C_F = 0.075 / (log10 Re - 2)^2 and Re = |u| Lpp / nu,
-  raised by ``friction_increase`` (a curve close to u^1.85 at these Reynolds numbers,
-  which the library's X|u|u and Xu u terms can only approximate);
-- ``rudder_offset``: both rudder-propellers stand ``offset_rad`` further than the
-  angle the sensors report: the exact thrust vectoring at the true angle minus that at
-  the reported one (the library's candidate is the linearized derivative).
+- ``hull_fouling`` (patrol boat): the frictional resistance of the ITTC-1957
+  correlation line, R_F = rho S C_F(Re) u|u| / 2 with C_F = 0.075 / (log10 Re - 2)^2 and
+  Re = |u| L / nu, raised by ``friction_increase`` (a curve close to u^1.85 at these
+  Reynolds numbers, which the library's X|u|u and Xu u terms can only approximate);
+- ``actuator_offset`` (patrol boat's rudder-propellers): the named actuators stand
+  ``offset`` further than their sensors report: the exact force of the vessel's ``term``
+  at the true positions minus that at the reported ones (the library's candidate is the
+  linearized derivative);
+- ``added_resistance`` (KVLCC2, MMG): ``share`` of the published resistance as a force
+  -share R_0' rho/2 L d u|u|, where the MMG model's R_0' acts with U^2 = u^2 + v^2;
+- ``actuator_share`` (the Otter's port thruster): one actuator gives ``share`` of its
+  contribution to the vessel's ``term`` (the loss acts where the actuator does).
 """
 
 from __future__ import annotations
@@ -21,11 +27,12 @@ from functools import lru_cache
 
 import numpy as np
 
+from vessel_description import load_vessel
 from vessel_diagnosis.scenarios import load_scenario_file
-from vessel_physics.params import load_named_vessel
-from vessel_physics.terms import propulsion
+from vessel_physics.physics_file import load_physics
 
 MIN_REYNOLDS = 1.0e5   # below this the friction line does not apply; u ~ 0 gives no force
+WATER_VELOCITY = {'u': 'u_water', 'v': 'v_water'}   # the hook's through-the-water speeds
 
 
 @lru_cache(maxsize=1)
@@ -33,9 +40,24 @@ def _effects() -> dict:
     return load_scenario_file()['effects']
 
 
-@lru_cache(maxsize=1)
-def _vessel():
-    return load_named_vessel('patrol_vessel')
+@lru_cache(maxsize=4)
+def _load(vessel_name: str, physics_name: str | None):
+    vessel = load_vessel(vessel_name)
+    return vessel, load_physics(physics_name or vessel.physics, vessel)
+
+
+def _vessel_physics(effect: dict):
+    """Return the effect's vessel and the physics it applies to (the vessel's unless named)."""
+    return _load(effect['vessel'], effect.get('physics'))
+
+
+def _term_force(effect: dict, state: dict, controls: dict) -> np.ndarray:
+    """Return the effect's ``term`` of its vessel's physics at these states and actuators."""
+    vessel, physics = _vessel_physics(effect)
+    z = np.stack([state[WATER_VELOCITY.get(s, s)] for s in vessel.state_names], axis=-1)
+    zeros = np.zeros_like(z[:, 0])
+    c = np.stack([controls.get(name, zeros) for name in vessel.control_names], axis=-1)
+    return physics.term_force(effect['term'], z, c)
 
 
 def ittc_friction_coefficient(speed, length: float, viscosity: float):
@@ -47,24 +69,35 @@ def ittc_friction_coefficient(speed, length: float, viscosity: float):
 def hull_fouling(t, state, controls, environment) -> np.ndarray:
     """Return the added frictional resistance of a fouled hull (see module docstring)."""
     cfg = _effects()['hull_fouling']
-    vessel = _vessel()
+    vessel, physics = _vessel_physics(cfg)
     u = state['u_water']
-    cf = ittc_friction_coefficient(u, vessel.Lpp, cfg['kinematic_viscosity_m2s'])
-    out = np.zeros((len(u), 4))
-    out[:, 0] = -(cfg['friction_increase'] * 0.5 * vessel.rho * cfg['wetted_surface_m2']
-                  * cf * u * np.abs(u))
+    cf = ittc_friction_coefficient(u, vessel.length_m, cfg['kinematic_viscosity_m2s'])
+    out = np.zeros((len(u), len(physics.family.dofs)))
+    out[:, 0] = -(cfg['friction_increase'] * 0.5 * physics.params.rho
+                  * cfg['wetted_surface_m2'] * cf * u * np.abs(u))
     return out
 
 
-def rudder_offset(t, state, controls, environment) -> np.ndarray:
-    """Return the thrust vectoring at the true angle minus that at the reported angle."""
-    offset = _effects()['rudder_offset']['offset_rad']
-    vessel = _vessel()
-    z = np.stack([state['u_water'], state['v_water'], state['p'], state['r'], state['phi']],
-                 axis=-1)
-    zeros = np.zeros_like(state['u'])
-    c = np.stack([controls['n'], controls['delta_port'], controls['delta_stbd'], zeros, zeros,
-                  zeros], axis=-1)
-    shifted = c.copy()
-    shifted[:, 1:3] += offset
-    return propulsion(z, shifted, vessel) - propulsion(z, c, vessel)
+def actuator_offset(t, state, controls, environment) -> np.ndarray:
+    """Return the term's force at the true actuator positions minus at the reported ones."""
+    cfg = _effects()['actuator_offset']
+    shifted = {**controls, **{name: controls[name] + cfg['offset'] for name in cfg['actuators']}}
+    return _term_force(cfg, state, shifted) - _term_force(cfg, state, controls)
+
+
+def added_resistance(t, state, controls, environment) -> np.ndarray:
+    """Return the tanker's added resistance (module docstring), [X, Y, N]."""
+    cfg = _effects()['added_resistance']
+    p = _vessel_physics(cfg)[1].params
+    u = state['u_water']
+    out = np.zeros((len(u), 3))
+    out[:, 0] = -cfg['share'] * p.R_0 * 0.5 * p.rho * p.L_pp * p.d * u * np.abs(u)
+    return out
+
+
+def actuator_share(t, state, controls, environment) -> np.ndarray:
+    """Return the share of one actuator's contribution its vessel does not get."""
+    cfg = _effects()['actuator_share']
+    without = {**controls, cfg['actuator']: np.zeros_like(controls[cfg['actuator']])}
+    contribution = _term_force(cfg, state, controls) - _term_force(cfg, state, without)
+    return -(1.0 - cfg['share']) * contribution

@@ -34,9 +34,8 @@ import numpy as np
 from vessel_diagnosis.library import Candidate, Library
 from vessel_diagnosis.predict import Predictor, Variant
 from vessel_diagnosis.recordings import Run
-from vessel_physics.augmented import Physics
+from vessel_physics.family import Physics
 
-STATES = ('u', 'v', 'p', 'r', 'phi')
 FD_STEP = 1.0e-2   # forward-difference step, as a share of each candidate's relevant scale
 
 
@@ -59,16 +58,17 @@ class Column:
 class Segments:
     """Free-run segments of all runs as one batch (m segments of ``horizon`` steps)."""
 
-    z0: np.ndarray         # (m, 5) measured start states
+    z0: np.ndarray         # (m, n_state) measured start states
     psi0: np.ndarray       # (m,)
-    c: np.ndarray          # (m, horizon + 1, 6) controls from the start sample on
-    target: np.ndarray     # (m, horizon, 5) measured states after 1..horizon samples
+    c: np.ndarray          # (m, horizon + 1, n_control) controls from the start sample on
+    target: np.ndarray     # (m, horizon, n_state) measured states after 1..horizon samples
     run_index: np.ndarray  # (m,) index into run_ids
     start: np.ndarray      # (m,) start sample within its run
     run_ids: tuple[str, ...]
     horizon: int
     skip: int
     dt: float
+    states: tuple[str, ...] = ()   # the names of z
 
     def currents(self, per_run: Mapping[str, np.ndarray]) -> np.ndarray | None:
         """Return the per-segment current (m, 2) from run id -> (north, east); None if none."""
@@ -79,11 +79,12 @@ class Segments:
 
     @property
     def observed(self) -> np.ndarray:
-        """Return the measured states of the rows (m, horizon - skip, 5)."""
+        """Return the measured states of the rows (m, horizon - skip, n_state)."""
         return self.target[:, self.skip:]
 
 
-def make_segments(runs: Sequence[Run], horizon: int, skip: int) -> Segments:
+def make_segments(runs: Sequence[Run], horizon: int, skip: int,
+                  states: Sequence[str] = ()) -> Segments:
     """Cut every run into segments starting every ``horizon - skip`` samples."""
     if not 0 <= skip < horizon:
         raise ValueError(f'need 0 <= skip < horizon, got {skip}, {horizon}')
@@ -100,7 +101,7 @@ def make_segments(runs: Sequence[Run], horizon: int, skip: int) -> Segments:
         raise ValueError(f'no run is longer than the {horizon}-sample segments')
     cols = list(zip(*parts, strict=True))
     return Segments(*(np.concatenate(c) for c in cols), tuple(r.run_id for r in runs),
-                    horizon, skip, runs[0].dt)
+                    horizon, skip, runs[0].dt, tuple(states))
 
 
 def candidate_columns(run_ids: Sequence[str], library: Library,
@@ -122,10 +123,10 @@ def candidate_columns(run_ids: Sequence[str], library: Library,
 class Design:
     """Residual rows, candidate columns, weights and bootstrap blocks."""
 
-    y: np.ndarray            # (m, rows, 5) residual: measured minus predicted
-    X: np.ndarray            # (m, rows, 5, K) effect of one unit of each coefficient
+    y: np.ndarray            # (m, rows, n_state) residual: measured minus predicted
+    X: np.ndarray            # (m, rows, n_state, K) effect of one unit of each coefficient
     columns: tuple[Column, ...]
-    sigma: np.ndarray        # (5,) RMS of the residual per state
+    sigma: np.ndarray        # (n_state,) RMS of the residual per state
     blocks: np.ndarray       # (m,) bootstrap block of every segment
     scales: np.ndarray       # (K,) relevant size of every coefficient
 
@@ -172,7 +173,7 @@ def build_design(segments: Segments, physics: Physics, library: Library,
                  ) -> Design:
     """Residuals and candidate effects at ``physics`` with the per-run ``currents``."""
     cur = segments.currents(currents)
-    scales = np.array([library.absolute_scale(library.by_name[col.candidate], physics.params)
+    scales = np.array([library.absolute_scale(library.by_name[col.candidate], physics)
                        for col in columns])
     steps = FD_STEP * scales
     variants, slot = [], []     # slot[k]: which variant gives column k

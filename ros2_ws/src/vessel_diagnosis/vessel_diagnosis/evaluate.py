@@ -8,10 +8,11 @@ would estimate them from the past; every error is measured after that span, for 
 models alike.
 
 - one step: predictions of z_k+1 from the measured z_k, every sample;
-- forecasts: the convention of ``hybrid_models.data`` (a ``window`` of measured samples,
-  then ``horizon`` steps from the last of them under the recorded controls), one every
-  ``stride`` samples; per-state RMSE and the trajectory error of Baier et al. from
-  ``hybrid_models.metrics.forecast_metrics`` (one definition for the whole project).
+- forecasts: the convention of ``hybrid_models.data`` (a window of measured samples,
+  then the horizon from the last of them under the recorded controls; both the vessel
+  file's unless the settings give them), one every ``stride_s``; per-state RMSE and the
+  trajectory error of Baier et al. from ``hybrid_models.metrics.forecast_metrics`` (one
+  definition for the whole project).
 
 Targets are the noise-free ``*_true`` states where the recordings have them (simulated
 data), else the measured states.
@@ -25,12 +26,14 @@ from dataclasses import replace
 import numpy as np
 
 from hybrid_models.metrics import forecast_metrics
-from vessel_diagnosis.design import STATES
+from vessel_description import Vessel
 from vessel_diagnosis.predict import Predictor
-from vessel_diagnosis.recordings import DIAGNOSED_VESSEL, Run
-from vessel_physics.augmented import Physics
+from vessel_diagnosis.recordings import Run
+from vessel_physics.family import Physics
 
-HORIZON_MARKS = (1, 60, 300, 600, 900)   # forecast steps at which RMSE per state is kept
+# Forecast steps at which RMSE per state is kept, as shares of the horizon (the first
+# step, then 1/15, 1/3, 2/3 and all of it: 1, 60, 300, 600, 900 of the patrol boat's).
+HORIZON_MARKS = (1 / 15, 1 / 3, 2 / 3, 1.0)
 
 
 def _targets(run: Run) -> np.ndarray:
@@ -39,7 +42,7 @@ def _targets(run: Run) -> np.ndarray:
 
 def one_step_errors(runs: Sequence[Run], physics: Physics, currents: Mapping[str, np.ndarray],
                     start: int, substeps: int) -> np.ndarray:
-    """Return the one-step errors (n, 5) on every run from sample ``start`` on."""
+    """Return the one-step errors (n, n_state) on every run from sample ``start`` on."""
     out = []
     for run in runs:
         if run.length - 1 <= start:
@@ -51,19 +54,30 @@ def one_step_errors(runs: Sequence[Run], physics: Physics, currents: Mapping[str
         pred = Predictor(physics, run.dt, substeps).one_step(
             run.z[sl], run.psi[sl], run.c[sl], run.c[start + 1:], cur)
         out.append(_targets(run)[start + 1:] - pred)
-    return np.concatenate(out) if out else np.zeros((0, 5))
+    return np.concatenate(out) if out else np.zeros((0, len(physics.family.states)))
+
+
+def forecast_spans(vessel: Vessel, settings, dt: float) -> tuple[int, int, int]:
+    """Return the window, horizon and stride of the held-out forecasts in samples."""
+    ev = settings.evaluation
+    window = ev.window_s if ev.window_s is not None else vessel.window_s
+    horizon = ev.horizon_s if ev.horizon_s is not None else vessel.horizon_s
+    return (settings.samples(window, dt), settings.samples(horizon, dt),
+            settings.samples(ev.stride_s, dt))
 
 
 def forecasts(runs: Sequence[Run], physics: Physics, currents: Mapping[str, np.ndarray],
-              start: int, settings) -> tuple[np.ndarray, np.ndarray]:
-    """Return (predictions, targets), each (B, horizon, 5), of the forecasts after ``start``."""
-    ev = settings.evaluation
+              start: int, settings, spans: tuple[int, int, int]
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Return (predictions, targets), each (B, horizon, n_state), of forecasts after ``start``."""
+    window, horizon, stride = spans
+    n_state = len(physics.family.states)
     preds, trues = [], []
     for run in runs:
-        t0s = np.arange(start + ev.window, run.length - ev.horizon + 1, ev.stride)
+        t0s = np.arange(start + window, run.length - horizon + 1, stride)
         if not len(t0s):
             continue
-        idx = (t0s - 1)[:, None] + np.arange(ev.horizon + 1)[None, :]
+        idx = (t0s - 1)[:, None] + np.arange(horizon + 1)[None, :]
         cur = currents.get(run.run_id)
         cur = None if cur is None else np.broadcast_to(cur, (len(t0s), 2))
         pred = Predictor(physics, run.dt, settings.prediction.substeps).simulate(
@@ -71,12 +85,12 @@ def forecasts(runs: Sequence[Run], physics: Physics, currents: Mapping[str, np.n
         preds.append(pred)
         trues.append(_targets(run)[idx[:, 1:]])
     if not preds:
-        return np.zeros((0, ev.horizon, 5)), np.zeros((0, ev.horizon, 5))
+        return np.zeros((0, horizon, n_state)), np.zeros((0, horizon, n_state))
     return np.concatenate(preds), np.concatenate(trues)
 
 
-def _rmse(err: np.ndarray) -> dict[str, float]:
-    return {s: float(np.sqrt(np.mean(err[..., i] ** 2))) for i, s in enumerate(STATES)}
+def _rmse(err: np.ndarray, states) -> dict[str, float]:
+    return {s: float(np.sqrt(np.mean(err[..., i] ** 2))) for i, s in enumerate(states)}
 
 
 def _gain(before: float | None, after: float | None) -> float | None:
@@ -85,29 +99,34 @@ def _gain(before: float | None, after: float | None) -> float | None:
     return float((before - after) / before)
 
 
-def evaluate(runs: Sequence[Run], models: Mapping[str, tuple[Physics, Mapping]], settings
-             ) -> dict:
+def evaluate(runs: Sequence[Run], models: Mapping[str, tuple[Physics, Mapping]], settings,
+             vessel: Vessel) -> dict:
     """
-    Return the errors of each model on the held-out ``runs``.
+    Return the errors of each model on the held-out ``runs`` of ``vessel``.
 
     ``models`` maps a name to (physics, per-run currents); the first model is the
     reference for the gains.
     """
     ev = settings.evaluation
-    start = int(round(ev.calibration_s / runs[0].dt)) if runs else 0
+    dt = runs[0].dt if runs else vessel.dt
+    start = int(round(ev.calibration_s / dt)) if runs else 0
+    spans = forecast_spans(vessel, settings, dt)
+    states = vessel.state_names
     out: dict = {'runs': [r.run_id for r in runs], 'start_sample': start,
                  'target': 'true' if all(r.z_true is not None for r in runs) else 'measured',
+                 'window': spans[0], 'horizon': spans[1], 'stride': spans[2],
                  'one_step_rmse': {}, 'forecast': {}, 'rmse_by_step': {}}
-    vessel = replace(DIAGNOSED_VESSEL, rate_hz=1.0 / runs[0].dt) if runs else DIAGNOSED_VESSEL
+    vessel = replace(vessel, rate_hz=1.0 / dt)
+    marks = sorted({1, *(max(1, int(round(share * spans[1]))) for share in HORIZON_MARKS)})
     for name, (physics, currents) in models.items():
         err = one_step_errors(runs, physics, currents, start, settings.prediction.substeps)
-        out['one_step_rmse'][name] = _rmse(err) if len(err) else None
-        pred, true = forecasts(runs, physics, currents, start, settings)
+        out['one_step_rmse'][name] = _rmse(err, states) if len(err) else None
+        pred, true = forecasts(runs, physics, currents, start, settings, spans)
         if len(pred):
             metrics = forecast_metrics(pred, true, vessel)
             out['forecast'][name] = metrics
             out['rmse_by_step'][name] = {
-                str(k): _rmse(pred[:, k - 1] - true[:, k - 1]) for k in HORIZON_MARKS
+                str(k): _rmse(pred[:, k - 1] - true[:, k - 1], states) for k in marks
                 if k <= pred.shape[1]}
         else:
             out['forecast'][name] = None
@@ -117,9 +136,9 @@ def evaluate(runs: Sequence[Run], models: Mapping[str, tuple[Physics, Mapping]],
         one_ref, one_new = out['one_step_rmse'][ref], out['one_step_rmse'][new]
         f_ref, f_new = out['forecast'][ref], out['forecast'][new]
         out['improvement'] = {
-            'one_step_rmse': ({s: _gain(one_ref[s], one_new[s]) for s in STATES}
+            'one_step_rmse': ({s: _gain(one_ref[s], one_new[s]) for s in states}
                               if one_ref and one_new else None),
-            'forecast_rmse': ({s: _gain(f_ref['rmse'][s], f_new['rmse'][s]) for s in STATES}
+            'forecast_rmse': ({s: _gain(f_ref['rmse'][s], f_new['rmse'][s]) for s in states}
                               if f_ref and f_new else None),
             'trajectory': (_gain(f_ref['trajectory']['mean'], f_new['trajectory']['mean'])
                            if f_ref and f_new else None),

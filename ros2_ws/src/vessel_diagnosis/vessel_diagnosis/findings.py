@@ -13,14 +13,15 @@ from pathlib import Path
 
 import numpy as np
 
-from vessel_diagnosis.design import STATES
 from vessel_diagnosis.identify import CURRENT, Identification
 from vessel_diagnosis.library import CATEGORIES, Library
-from vessel_physics.augmented import ExtraTerm, Physics, write_physics, write_vessel
+from vessel_physics.family import ExtraTerm, Physics
+from vessel_physics.physics_file import write_parameters, write_physics
 
 SCHEMA = 'vessel-diagnosis/1'
 STATUS = {
-    'findings': 'the nominal physics lacks something: see the findings',
+    'findings': 'the nominal physics lacks something: see the findings (and the terms '
+                'found but kept out of the augmented physics)',
     'nothing_significant': 'nothing significant is missing from the nominal physics',
     'insufficient_excitation': 'the recordings cannot tell whether physics is missing',
 }
@@ -31,7 +32,7 @@ def _finite(x) -> float | None:
 
 
 def finding_records(ident: Identification, library: Library, nominal: Physics,
-                    min_gain: float) -> list[dict]:
+                    min_gain: float, states: tuple[str, ...]) -> list[dict]:
     """
     One record per kept term (findings.json ``findings``), strongest effect first.
 
@@ -51,7 +52,7 @@ def finding_records(ident: Identification, library: Library, nominal: Physics,
             'unit': cand.unit,
             'inclusion_probability': float(sel.inclusion_probability) if sel else None,
             'round': sel.round if sel else None,
-            'held_out_gain': {s: _finite(gain.get(s)) for s in STATES},
+            'held_out_gain': {s: _finite(gain.get(s)) for s in states},
             'aliases': [{'term': a.candidate, 'category': a.category, 'share': a.share,
                          'correlation': a.correlation} for a in ident.aliases.get(name, [])],
         }
@@ -82,8 +83,10 @@ def finding_records(ident: Identification, library: Library, nominal: Physics,
             value = float(ident.point.theta.get(name, 0.0))
             record['coefficient'] = value
             record['ci95'] = list(ident.ci95.get(name, (value, value)))
+            record['ci95_noise'] = list(ident.ci95_noise.get(name, (value, value)))
+            record['heterogeneity'] = ident.heterogeneity.get(name)
             if cand.kind == 'parameter':
-                nominal_value = float(getattr(nominal.params, cand.target))
+                nominal_value = nominal.parameter(cand.target)
                 record.update({
                     'parameter': cand.target,
                     'nominal': nominal_value,
@@ -94,10 +97,45 @@ def finding_records(ident: Identification, library: Library, nominal: Physics,
             else:
                 record['coefficient_meaning'] = (
                     f'{cand.target} times this coefficient on {cand.dofs}')
-        record['affected_states'] = [s for s in STATES if (gain.get(s) or 0.0) >= min_gain]
+        record['affected_states'] = [s for s in states if (gain.get(s) or 0.0) >= min_gain]
         records.append(record)
     records.sort(key=lambda r: -max(v or 0.0 for v in r['held_out_gain'].values()))
     return records
+
+
+def kept_out_records(ident: Identification, library: Library, nominal: Physics) -> list[dict]:
+    """
+    Return the terms found with certainty but kept out of the augmented physics.
+
+    Selected, selected again at the final point, an interval excluding zero, but too
+    small an effect on forecasts: their size and why.
+    """
+    out = []
+    for name, info in ident.kept_out.items():
+        if not info['certain']:
+            continue
+        cand = library.by_name[name]
+        record = {'term': name, 'category': cand.category, 'kind': cand.kind,
+                  'dof': cand.dofs, 'unit': cand.unit, 'description': cand.description,
+                  'coefficient': info['coefficient'], 'ci95': list(info['ci95']),
+                  'ci95_noise': list(info['ci95_noise']),
+                  'heterogeneity': info['heterogeneity'],
+                  'inclusion_probability': info['inclusion_probability'],
+                  'held_out_gain': info['held_out_gain'], 'why_kept_out': info['why']}
+        if cand.kind == 'parameter':
+            nominal_value = nominal.parameter(cand.target)
+            record.update({'parameter': cand.target, 'nominal': nominal_value,
+                           'value': nominal_value + info['coefficient'],
+                           'relative_change': (info['coefficient'] / nominal_value
+                                               if nominal_value else None)})
+        out.append(record)
+    return out
+
+
+def _size(record: Mapping) -> str:
+    if record.get('relative_change') is not None:
+        return f'{record["parameter"]} {100 * record["relative_change"]:+.0f} %'
+    return f'{record["term"]} {record["coefficient"]:.3g} {record["unit"]}'
 
 
 def candidate_records(ident: Identification, library: Library) -> list[dict]:
@@ -144,15 +182,16 @@ def excitation_verdict(ident: Identification, library: Library, min_categories: 
     return len(checked) >= min_categories, missing
 
 
-def status_of(records: Sequence[dict], enough: bool) -> str:
-    """Return the overall status (a key of STATUS)."""
-    if records:
+def status_of(records: Sequence[dict], enough: bool, kept_out: Sequence[dict] = ()) -> str:
+    """Return the overall status (a key of STATUS): a term found with certainty counts."""
+    if records or kept_out:
         return 'findings'
     return 'nothing_significant' if enough else 'insufficient_excitation'
 
 
 def summary_line(status: str, records: Sequence[dict], missing: Sequence[str],
-                 signals: Mapping[str, Mapping[str, float]] | None = None) -> str:
+                 signals: Mapping[str, Mapping[str, float]] | None = None,
+                 kept_out: Sequence[dict] = ()) -> str:
     """One plain sentence for the top of the report."""
     if status == 'findings':
         parts = []
@@ -160,7 +199,15 @@ def summary_line(status: str, records: Sequence[dict], missing: Sequence[str],
             alias = (f' (cannot be told apart from {", ".join(a["term"] for a in r["aliases"])})'
                      if r['aliases'] else '')
             parts.append(f'{r["category"]} ({r["term"]} on {r["dof"]}){alias}')
-        return 'Missing physics found: ' + '; '.join(parts) + '.'
+        out = ('Missing physics found: ' + '; '.join(parts) + '.') if parts else \
+            'No term improves held-out forecasts enough to enter the augmented physics.'
+        if kept_out:
+            out += (' Found with certainty but kept out of the augmented physics for its '
+                    'small effect on forecasts: ' + '; '.join(
+                        f'{r["category"]} ({_size(r)}, P = {r["inclusion_probability"]:.2f}, '
+                        f'{100 * r["held_out_gain"]:.1f} % on held-out predictions)'
+                        for r in kept_out) + '.')
+        return out
     if status == 'nothing_significant':
         note = (f' Not checkable with these recordings: {", ".join(missing)}.' if missing
                 else '')
@@ -168,11 +215,12 @@ def summary_line(status: str, records: Sequence[dict], missing: Sequence[str],
                 'predictions.' + note)
     spread = ''
     if signals:
-        spread = (f'; within runs the shaft speed varies by '
-                  f'{signals["shaft_speed_rpm"]["std_within_runs"]:.0f} rpm and the rudder by '
-                  f'{signals["rudder_deg"]["std_within_runs"]:.2f} deg (std), speeds span '
-                  f'{signals["speed_mps"]["min"]:.1f}-{signals["speed_mps"]["max"]:.1f} m/s, '
-                  f'wind reaches {signals["wind_speed_mps"]["max"]:.1f} m/s')
+        inputs = [f'{name} by {v["std_within_runs"]:.3g}' for name, v in signals.items()
+                  if name not in ('speed_mps', 'yaw_rate_deg_s', 'wind_speed_mps')]
+        spread = (f'; within runs {", ".join(inputs)} (std), speeds span '
+                  f'{signals["speed_mps"]["min"]:.1f}-{signals["speed_mps"]["max"]:.1f} m/s'
+                  + (f', wind reaches {signals["wind_speed_mps"]["max"]:.1f} m/s'
+                     if 'wind_speed_mps' in signals else ''))
     return ('The recordings cannot tell whether physics is missing: too little excitation'
             + (f' (not checkable: {", ".join(missing)})' if missing else '') + spread
             + '. Record manoeuvres: speed changes, turns both ways, different headings.')
@@ -231,34 +279,28 @@ def augmented_physics(ident: Identification, records: Sequence[dict], nominal: P
             'runs': {run: {'north_mps': v['north'], 'east_mps': v['east']}
                      for run, v in by_term[CURRENT]['per_run'].items()},
         }
-    params = ident.physics.params.replace(name=f'{nominal.params.name}_augmented')
-    return nominal.replace(params=params, extra_terms=tuple(extras), environment=environment)
+    params = nominal.family.replace(ident.physics.params,
+                                    name=f'{nominal.params.name}_augmented')
+    return nominal.replace(params=params, extra_terms=tuple(extras), environment=environment,
+                           parameters_file='augmented_parameters.yaml')
 
 
-def write_augmented(out: Path, physics: Physics, records: Sequence[dict], nominal_source: str
-                    ) -> dict[str, str]:
-    """Write the augmented vessel, physics and simulator scenario files; return their names."""
+def write_augmented(out: Path, physics: Physics, records: Sequence[dict], nominal_source: str,
+                    vessel_file: str) -> dict[str, str]:
+    """Write the augmented parameters, physics and simulator scenario; return their names."""
     changed = [f'{r["parameter"]}: {r["nominal"]:.6g} -> {r["value"]:.6g}' for r in records
                if r['kind'] == 'parameter']
-    header = ('Augmented vessel written by offline/diagnose.py: the nominal vessel of\n'
-              f'{nominal_source} with the parameters the recordings corrected:\n'
+    header = ('Augmented parameters written by offline/diagnose.py: the nominal parameters of\n'
+              f'{nominal_source} with those the recordings corrected:\n'
               + ('\n'.join(changed) if changed else '(none)'))
-    write_vessel(physics.params, out / 'augmented_vessel.yaml', header)
-    write_physics(physics, out / 'augmented_physics.yaml', 'augmented_vessel.yaml',
+    write_parameters(physics, out / 'augmented_parameters.yaml', header)
+    write_physics(physics, out / 'augmented_physics.yaml', 'augmented_parameters.yaml',
                   'Augmented physics written by offline/diagnose.py (format: '
-                  'vessel_physics.augmented).\nLoad with vessel_physics.augmented.load_physics; '
-                  'findings.json has every number.')
-    scenario = ['# Simulator scenario with the augmented physics (docs/diagnosis.md).',
-                'vessel: augmented_vessel.yaml']
-    if physics.extra_terms:
-        scenario += ['# The extra terms come from the hook: export VESSEL_PHYSICS_EXTRA=<path of',
-                     '# augmented_physics.yaml> before simulating.',
-                     'extra_forces: vessel_physics.augmented:extra_forces_hook']
-    if 'wind' not in physics.terms:
-        scenario += ['wind:   # the nominal physics has no Isherwood wind term (note: the',
-                     '        # simulator hands the hook no wind while its own wind load is',
-                     '        # off, so wind terms found by the diagnosis act only in models)',
-                     '  force_scale: 0.0']
+                  'vessel_physics.physics_file).\nLoad with '
+                  'vessel_physics.physics_file.load_physics; findings.json has every number.')
+    scenario = ['# Simulator scenario with the augmented physics (docs/diagnosis.md):',
+                '# offline/simulate.py --config augmented_simulation.yaml',
+                f'vessel: {vessel_file}', 'physics: augmented_physics.yaml']
     if 'current' in physics.environment:
         speeds = [math.hypot(v['north_mps'], v['east_mps'])
                   for v in physics.environment['current']['runs'].values()]
@@ -267,7 +309,7 @@ def write_augmented(out: Path, physics: Physics, records: Sequence[dict], nomina
                      f'  speed_mps: [{min(speeds):.3f}, {max(speeds):.3f}]',
                      '  variation: 0.0']
     (out / 'augmented_simulation.yaml').write_text('\n'.join(scenario) + '\n')
-    return {'physics': 'augmented_physics.yaml', 'vessel': 'augmented_vessel.yaml',
+    return {'physics': 'augmented_physics.yaml', 'parameters': 'augmented_parameters.yaml',
             'simulation': 'augmented_simulation.yaml'}
 
 

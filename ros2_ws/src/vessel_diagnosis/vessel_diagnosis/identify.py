@@ -15,7 +15,23 @@ coefficients are refitted on one fold and predict the other; the weakest term go
 the rest are refitted, and again until every term earns its place. Of two candidates
 that explain the same thing only one survives this, and the other is reported as an
 alias: a candidate outside the model that explains at least ``alias_share`` of what a
-kept term explains cannot be told apart from it by these recordings.
+kept term explains cannot be told apart from it by these recordings. A term the
+selection took in but pruning left out is still reported, with its size and interval
+(``Identification.kept_out``): identified with certainty, it is found, only too small to
+change forecasts.
+
+Intervals. The block bootstrap of the linearized refit measures how far the estimate
+moves with the data's noise. Where the model is misspecified that is not all: the
+correction each run asks for differs between runs (a coefficient standing in for
+something else takes the value the run's manoeuvres need), beyond what their noise
+explains. That between-run spread is estimated as the heterogeneity tau^2 of a
+random-effects model (DerSimonian & Laird 1986) from per-run estimates of each
+coefficient (the others held at the fitted values; per bootstrap block when there are
+fewer than ``MIN_GROUPS`` runs), and the reported 95 % interval is the wider of the
+bootstrap's and estimate +- 1.96 sqrt(se^2 + tau^2): the value another run of the same
+vessel would ask for. ``ci95_noise`` keeps the bootstrap interval alone, and ``i2`` the
+share of the per-run spread that noise does not explain (0: consistent; near 1: the runs
+disagree, a sign of misspecification).
 """
 
 from __future__ import annotations
@@ -26,7 +42,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from vessel_diagnosis.design import (
-    STATES,
     Column,
     Design,
     Segments,
@@ -41,11 +56,13 @@ from vessel_diagnosis.selection import (
     least_squares,
     rss,
 )
-from vessel_physics.augmented import Physics
 from vessel_physics.errors import ConfigError
+from vessel_physics.family import Physics
 
 CURRENT = 'current'
 MAX_HALVINGS = 3   # step halvings of a Gauss-Newton update that made the fit worse
+MIN_GROUPS = 3     # runs needed to estimate the between-run spread (else: blocks)
+Z95 = 1.959964     # two-sided 95 % quantile of the normal distribution
 
 
 @dataclass
@@ -127,6 +144,29 @@ class Identification:
     pruned: dict[str, str]                      # candidate -> why it was dropped
     identifiability: dict[str, dict]            # candidate -> marginal/joint SE vs scale
     rounds: list[dict]
+    ci95_noise: dict[str, tuple[float, float]] = field(default_factory=dict)
+    heterogeneity: dict[str, dict] = field(default_factory=dict)   # candidate -> tau, i2
+    kept_out: dict[str, dict] = field(default_factory=dict)  # selected, then pruned
+
+
+def random_effects(estimates: np.ndarray, variances: np.ndarray) -> tuple[float, float]:
+    """
+    Return (tau^2, I^2) of per-group estimates with their variances (DerSimonian-Laird).
+
+    tau^2 is the variance of the groups' true values around their mean beyond what the
+    variances explain; I^2 = (Q - (G - 1)) / Q the share of the spread it makes.
+    """
+    ok = np.isfinite(estimates) & np.isfinite(variances) & (variances > 0)
+    d, v = estimates[ok], variances[ok]
+    if len(d) < 2:
+        return 0.0, 0.0
+    w = 1.0 / v
+    mean = np.sum(w * d) / np.sum(w)
+    q = float(np.sum(w * (d - mean) ** 2))
+    c = float(np.sum(w) - np.sum(w * w) / np.sum(w))
+    tau2 = max(0.0, (q - (len(d) - 1)) / c) if c > 0 else 0.0
+    i2 = max(0.0, (q - (len(d) - 1)) / q) if q > 0 else 0.0
+    return tau2, i2
 
 
 def _strata(design: Design, segments: Segments) -> np.ndarray:
@@ -177,6 +217,7 @@ class Identifier:
         self.library = library
         self.settings = settings
         self.say = progress or (lambda message: None)
+        self.pruned_gain: dict[str, float] = {}
 
     # ------------------------------------------------------------------ helpers
     def _columns(self, runs: Sequence[str], names: Sequence[str] | None = None):
@@ -308,7 +349,7 @@ class Identifier:
         for name in names:
             without = np.sqrt(np.mean(fitted_residual(name) ** 2, axis=(0, 1)))
             gains[name] = {s: float((without[i] - full[i]) / without[i]) if without[i] > 0
-                           else 0.0 for i, s in enumerate(STATES)}
+                           else 0.0 for i, s in enumerate(segments.states)}
         return gains
 
     def prune(self, design: Design, segments: Segments, point: Point, names: Sequence[str]):
@@ -326,6 +367,7 @@ class Identifier:
             pruned[weakest] = (f'leaving it out changes held-out predictions by '
                                f'{100 * best[weakest]:.1f} % at most (< '
                                f'{100 * min_gain:.0f} %)')
+            self.pruned_gain[weakest] = best[weakest]
             self.say(f'  pruned {weakest}: {pruned[weakest]}')
             kept.remove(weakest)
             dropped.append(weakest)
@@ -339,7 +381,7 @@ class Identifier:
             cand = self.library.by_name[name]
             if cand.kind != 'parameter':
                 continue
-            nominal = getattr(self.nominal.params, cand.target)
+            nominal = self.nominal.parameter(cand.target)
             change = point.theta.get(name, 0.0)
             if nominal != 0 and (np.sign(nominal + change) != np.sign(nominal)
                                  or abs(change) > limit * abs(nominal)):
@@ -369,6 +411,49 @@ class Identifier:
         boot = np.array([least_squares(*stats.total(stats.resample(rng))[:2], support)
                          for _ in range(cfg.bootstrap)])
         return point.values(design.columns)[None, :] + (boot - full[None, :]) / norm
+
+    def heterogeneity(self, design: Design, segments: Segments, names: Sequence[str]
+                      ) -> dict[str, dict]:
+        """
+        Return the between-run spread of each global coefficient (module doc, Intervals).
+
+        Per run (per block with fewer than ``MIN_GROUPS`` runs), the correction of one
+        coefficient that the run's residual at the fitted point asks for, with the others
+        held, and its variance from the run's residual and the rows' effective share.
+        """
+        X, y, blocks = design.stacked()
+        per_segment = design.y.shape[1] * design.y.shape[2]
+        groups = (np.repeat(segments.run_index, per_segment)
+                  if len(segments.run_ids) >= MIN_GROUPS else blocks)
+        ratio = max(self._neff_ratio(design), 1e-6)
+        out = {}
+        for name in names:
+            idx = [k for k, c in enumerate(design.columns) if c.candidate == name]
+            if name == CURRENT or len(idx) != 1:
+                continue
+            x = X[:, idx[0]]
+            estimates, variances = [], []
+            for g in np.unique(groups):
+                rows = groups == g
+                sxx = float(x[rows] @ x[rows])
+                if sxx <= 0 or rows.sum() < 3:
+                    continue
+                d = float(x[rows] @ y[rows]) / sxx
+                residual = y[rows] - x[rows] * d
+                variances.append(float(residual @ residual) / (rows.sum() - 1) / sxx / ratio)
+                estimates.append(d)
+            tau2, i2 = random_effects(np.array(estimates), np.array(variances))
+            out[name] = {'tau': float(np.sqrt(tau2)), 'i2': i2, 'groups': len(estimates),
+                         'grouped_by': 'run' if len(segments.run_ids) >= MIN_GROUPS
+                         else 'block',
+                         'spread': float(np.std(estimates)) if estimates else 0.0}
+        return out
+
+    def widened(self, estimate: float, boot: np.ndarray, tau: float) -> tuple[float, float]:
+        """Return the 95 % interval: the bootstrap's, widened by the between-run spread tau."""
+        low, high = (float(v) for v in np.percentile(boot, [2.5, 97.5]))
+        half = Z95 * float(np.sqrt(np.var(boot) + tau * tau))
+        return min(low, float(estimate) - half), max(high, float(estimate) + half)
 
     def aliases(self, segments: Segments, point: Point, names: Sequence[str]
                 ) -> dict[str, list[Alias]]:
@@ -485,6 +570,7 @@ class Identifier:
             self.say(f'  added {", ".join(new)}; refitting {len(kept)} terms')
             point, design = self.refit(segments, point, kept)
         pruned: dict[str, str] = {}
+        pruned_values: dict[str, float] = {}
         gains: dict[str, dict[str, float]] = {}
         while kept:
             design = self._design(segments, point, self._columns(segments.run_ids, kept))
@@ -492,6 +578,8 @@ class Identifier:
             pruned.update(dropped)
             if survivors != kept:
                 for name in dropped:
+                    if name in point.theta:
+                        pruned_values[name] = point.theta[name]
                     point = point.without(name)
                 kept = survivors
                 if kept:
@@ -507,6 +595,8 @@ class Identifier:
             if kept:
                 point, design = self.refit(segments, point, kept)
         ci95: dict[str, tuple[float, float]] = {}
+        ci95_noise: dict[str, tuple[float, float]] = {}
+        hetero: dict[str, dict] = {}
         current_ci: dict[str, np.ndarray] = {}
         speed_ci = None
         aliases: dict[str, list[Alias]] = {}
@@ -527,9 +617,64 @@ class Identifier:
                             boot[:, k], [2.5, 97.5])
                     speed_ci = rms_speed_interval(boot[:, idx], point.values(columns)[idx])
                 else:
-                    ci95[name] = tuple(float(v) for v in np.percentile(boot[:, idx[0]],
-                                                                       [2.5, 97.5]))
+                    ci95_noise[name] = tuple(float(v) for v in np.percentile(
+                        boot[:, idx[0]], [2.5, 97.5]))
+            hetero = self.heterogeneity(design, segments, kept)
+            for name, h in hetero.items():
+                k = [j for j, c in enumerate(columns) if c.candidate == name][0]
+                ci95[name] = self.widened(point.theta.get(name, 0.0), boot[:, k], h['tau'])
             aliases = self.aliases(segments, point, kept)
+        kept_out = self.kept_out(segments, point, kept, selected, pruned, pruned_values)
         return Identification(point, point.physics(self.nominal, self.library), selected, kept,
                               gains, ci95, current_ci, speed_ci, aliases, pruned,
-                              identifiability, rounds)
+                              identifiability, rounds, ci95_noise, hetero, kept_out)
+
+    def kept_out(self, segments: Segments, point: Point, kept: Sequence[str],
+                 selected: dict[str, Selected], pruned: dict[str, str],
+                 values: dict[str, float]) -> dict[str, dict]:
+        """
+        Return the terms the selection took in but pruning left out for their small effect.
+
+        Their size and interval at the fitted point with them, why they were left out,
+        and whether they are certain: selected again, at least ``inclusion_threshold`` of
+        the time, when offered alone at the final point (every kept term fitted), an
+        interval that excludes zero, and a size of at least ``kept_out_share`` of the
+        library's physically relevant scale (a GM 20 % low is; a damping 5 % off is not).
+        """
+        names = [n for n in pruned if n in selected and n in values and n != CURRENT
+                 and n in self.pruned_gain]
+        if not names:
+            return {}
+        cfg = self.settings.selection
+        residual = self._design(segments, point, self._columns(segments.run_ids, names))
+        X, y, blocks = residual.stacked()
+        again = BootstrapLasso(cfg.bootstrap, cfg.inclusion_threshold,
+                               self._neff_ratio(residual), cfg.max_terms,
+                               cfg.seed + len(names)).fit(X, y, blocks, residual.names,
+                                                          _strata(residual, segments))
+        probability = dict(zip(residual.names, again.inclusion_probability_, strict=True))
+        full = Point({**point.theta, **{n: values[n] for n in names}},
+                     {k: v.copy() for k, v in point.currents.items()})
+        design = self._design(segments, full, self._columns(segments.run_ids,
+                                                            list(kept) + names))
+        boot = self.intervals(design, segments, full)
+        hetero = self.heterogeneity(design, segments, names)
+        out = {}
+        for name in names:
+            k = [j for j, c in enumerate(design.columns) if c.candidate == name][0]
+            ci = self.widened(values[name], boot[:, k], hetero.get(name, {}).get('tau', 0.0))
+            p_final = float(probability[name])
+            relevant = self.settings.validation.kept_out_share * self.library.absolute_scale(
+                self.library.by_name[name], self.nominal)
+            noise = tuple(float(v) for v in np.percentile(boot[:, k], [2.5, 97.5]))
+            out[name] = {'coefficient': float(values[name]), 'ci95': ci, 'ci95_noise': noise,
+                         'heterogeneity': hetero.get(name),
+                         'relevant_size': float(relevant),
+                         'inclusion_probability': p_final,
+                         'selected_probability': selected[name].inclusion_probability,
+                         'held_out_gain': float(self.pruned_gain[name]),
+                         'why': pruned[name],
+                         'certain': bool(p_final >= cfg.inclusion_threshold
+                                         and not ci[0] <= 0.0 <= ci[1]
+                                         and abs(values[name]) >= relevant)}
+        return out

@@ -2,37 +2,35 @@
 The candidate library: named physical effects, how each changes a physics, its category.
 
 A ``Candidate`` is one coefficient the recordings may ask for. Three kinds, all applied
-to a ``vessel_physics.augmented.Physics`` (so the simulator's and the models' own term
-functions are reused, never copied):
+to a ``vessel_physics.family.Physics`` of any family (so the simulator's and the models'
+own term functions are reused, never copied):
 
-- ``parameter``: a vessel parameter is off; the coefficient is its change (SI), applied
-  with ``VesselParams.replace`` (hull damping, restoring, added mass, wake fraction);
-- ``term``: a force term is missing or mis-scaled; the coefficient multiplies a term of
-  ``vessel_physics.candidates`` or ``vessel_physics.terms`` on some DOFs;
+- ``parameter``: a parameter of the family is off; the coefficient is its change (in its
+  unit), applied with ``Physics.with_parameters`` (hull damping, restoring, added mass,
+  wake fraction, rudder lift...);
+- ``term``: a force term is missing or mis-scaled; the coefficient multiplies a force or
+  candidate term of the family's registry on some of its DOFs;
 - ``current``: a steady ocean current per run (north, east), which the predictor turns
   into the offset between velocity over ground and through the water.
 
-The library is read from YAML (config/library.yaml documents the keys).
+Each family has its library (config/library/FAMILY.yaml documents the keys); a user's
+library (``--library``) is checked against the family of the physics it is used with.
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import dataclass, fields
+import dataclasses
+from dataclasses import dataclass
 from pathlib import Path
-import re
 
 import numpy as np
 
 from vessel_description.resources import read_yaml
 from vessel_diagnosis.predict import Variant
 from vessel_diagnosis.settings import config_dir
-from vessel_physics.augmented import ExtraTerm, Physics, term_function
-from vessel_physics.candidates import CANDIDATES
 from vessel_physics.errors import did_you_mean
-from vessel_physics.mass import inverse_mass_matrix_T
-from vessel_physics.params import VesselParams
-from vessel_physics.terms import DOFS, TERMS, hull_damping_features, hull_damping_matrix
+from vessel_physics.family import Family, Physics
 
 KINDS = ('parameter', 'term', 'current')
 CATEGORIES = {
@@ -42,44 +40,33 @@ CATEGORIES = {
     'restoring': 'hydrostatic roll restoring (GM, GZ curve)',
     'added_mass': 'added mass and inertia (mass matrix)',
     'propulsion': 'propeller thrust (KT, diameter, wake, shaft speed reading)',
+    'rudder': 'rudder forces (lift gradient, hull interaction)',
     'actuator_bias': 'rudder-angle offset, port/starboard thrust asymmetry',
     'static_bias': 'constant generalized force (list, asymmetric hull or appendage)',
     'wind': 'wind loads in the apparent wind',
     'current': 'steady ocean current (offset between ground and water velocity)',
 }
-_MASS_UNITS = {'Xudot': 'kg', 'Yvdot': 'kg', 'Ypdot': 'kg m', 'Yrdot': 'kg m', 'Kvdot': 'kg m',
-               'Kpdot': 'kg m^2', 'Krdot': 'kg m^2', 'Nvdot': 'kg m', 'Npdot': 'kg m^2',
-               'Nrdot': 'kg m^2'}
-_OTHER_UNITS = {'GM': 'm', 'wake_fraction': '1', 'Ixx': 'kg m^2', 'Izz': 'kg m^2'}
-_OTHER_DOFS = {'GM': 'K', 'wake_fraction': 'XYKN', 'Ixx': 'K', 'Izz': 'N'}
-# Probe states and controls that tell which terms a parameter enters (any that differ).
-_PROBE_Z = np.array([[6.0, 0.2, 0.01, 0.02, 0.01], [3.0, -0.3, -0.02, -0.01, -0.02]])
-_PROBE_C = np.array([[80.0, 0.05, 0.04, 5.0, 0.6, 0.8], [50.0, -0.1, -0.12, 9.0, -0.8, -0.6]])
+
+
+# Froude's law: the power of the length ratio each base unit scales with (velocities
+# with its square root, so times too); a library's absolute scales move with the vessel.
+FROUDE_POWERS = {'N': 3.0, 'kg': 3.0, 'm': 1.0, 's': 0.5, 'rad': 0.0, '1': 0.0}
 
 
 class LibraryError(ValueError):
     """A library file is invalid; the message is one line."""
 
 
-def parameter_unit(name: str) -> str:
-    """Return the SI unit of a textbook coefficient name (e.g. Xauu -> 'N s^2 m^-2')."""
-    if name in _MASS_UNITS:
-        return _MASS_UNITS[name]
-    if name in _OTHER_UNITS:
-        return _OTHER_UNITS[name]
-    dof, rest = name[0], name[1:]
-    metres, seconds, radians = (1 if dof in 'KN' else 0), 0, 0
-    for token in re.findall(r'phi|a?[uvpr]', rest):
-        q = token[-1]
-        if token == 'phi':
-            radians -= 1
-        elif q in 'uv':
-            metres, seconds = metres - 1, seconds + 1
-        else:
-            radians, seconds = radians - 1, seconds + 1
-    parts = ['N'] + [f'{u}^{e}' if e != 1 else u for u, e in
-                     (('m', metres), ('s', seconds), ('rad', radians)) if e]
-    return ' '.join(parts)
+def froude_power(unit: str) -> float:
+    """Return the power of the length ratio a unit scales with, e.g. 'N s/m' -> 2.5."""
+    power, sign = 0.0, 1.0
+    for token in unit.split('(')[0].replace('/', ' / ').split():
+        if token == '/':
+            sign = -1.0
+            continue
+        base, _, exponent = token.partition('^')
+        power += sign * FROUDE_POWERS[base] * (float(exponent) if exponent else 1.0)
+    return power
 
 
 @dataclass(frozen=True)
@@ -95,12 +82,16 @@ class Candidate:
     scale: float
     description: str = ''
     requires: tuple[str, ...] = ()
+    absolute_scale: float | None = None   # a parameter's, where its nominal value is zero
 
 
 class Library:
-    """An ordered set of candidates; applies coefficients to a physics."""
+    """An ordered set of candidates of one family; applies coefficients to its physics."""
 
-    def __init__(self, candidates: Iterable[Candidate]):
+    def __init__(self, candidates: Iterable[Candidate], family: str = '',
+                 reference_length_m: float | None = None):
+        self.family = family
+        self.reference_length_m = reference_length_m
         self.candidates = tuple(candidates)
         self.by_name = {c.name: c for c in self.candidates}
         if len(self.by_name) != len(self.candidates):
@@ -119,80 +110,65 @@ class Library:
     def apply(self, physics: Physics, values: Mapping[str, float]) -> Physics:
         """Return ``physics`` with the coefficients ``values`` (name -> value) added."""
         changes: dict[str, float] = {}
-        extras = list(physics.extra_terms)
         for name, value in values.items():
             cand = self.by_name[name]
             if cand.kind == 'parameter':
-                changes[cand.target] = changes.get(cand.target, getattr(
-                    physics.params, cand.target)) + float(value)
+                changes[cand.target] = changes.get(cand.target, physics.parameter(
+                    cand.target)) + float(value)
             elif cand.kind == 'term':
-                for i, term in enumerate(extras):
-                    if term.term == cand.target and term.dofs == cand.dofs:
-                        extras[i] = ExtraTerm(term.term, term.dofs,
-                                              term.coefficient + float(value), term.info)
-                        break
-                else:
-                    extras.append(ExtraTerm(cand.target, cand.dofs, float(value),
-                                            {'candidate': cand.name, 'category': cand.category}))
+                physics = physics.with_extra(cand.target, cand.dofs, float(value),
+                                             {'candidate': cand.name,
+                                              'category': cand.category})
             else:
                 raise ValueError(f'{name}: a per-run candidate is not applied to the physics')
-        params = physics.params.replace(**changes) if changes else physics.params
-        return physics.replace(params=params, extra_terms=tuple(extras))
+        return physics.with_parameters(**changes) if changes else physics
 
     def variant(self, cand: Candidate, physics: Physics, step: float) -> Variant:
         """
         Return the change ``step`` of a candidate's coefficient as a prediction variant.
 
         A term adds step * term; a parameter adds the difference of only the terms it
-        enters (found on probe states), and replaces the mass matrix if it enters that;
-        a current shifts the rows' current north (the east column is a separate variant).
+        enters and replaces the mass matrix if it enters that
+        (``Physics.parameter_variant``); a current shifts the rows' current north (the
+        east column is a separate variant).
         """
         if cand.kind == 'term':
-            fn, velocity = term_function(cand.target)
-            weights = step * np.array([1.0 if d in cand.dofs else 0.0 for d in DOFS])
-            params = physics.params
-            if velocity == 'ground':
-                return Variant(extra_force=lambda zw, c, zg: fn(zg, c, params) * weights)
-            return Variant(extra_force=lambda zw, c, zg: fn(zw, c, params) * weights)
+            letters = ''.join(physics.family.dofs)
+            weights = step * np.array([1.0 if d in cand.dofs else 0.0 for d in letters])
+            return Variant(extra_force=lambda zw, c, zg: physics.term_force(
+                cand.target, zw, c, zg) * weights)
         if cand.kind != 'parameter':
             raise ValueError(f'{cand.name}: per-run candidates have two components')
-        params = physics.params
-        moved = params.replace(**{cand.target: getattr(params, cand.target) + step})
-        terms = [name for name in physics.terms
-                 if not np.array_equal(term_function(name)[0](_PROBE_Z, _PROBE_C, params),
-                                       term_function(name)[0](_PROBE_Z, _PROBE_C, moved))]
-        extras = [t for t in physics.extra_terms
-                  if not np.array_equal(t.force(_PROBE_Z, _PROBE_C, params),
-                                        t.force(_PROBE_Z, _PROBE_C, moved))]
-        minv_t = inverse_mass_matrix_T(moved)
-        minv_t = None if np.array_equal(minv_t, inverse_mass_matrix_T(params)) else minv_t
-        if terms == ['hull_damping'] and not extras:
-            # Hull damping is linear in its coefficients: features times the change.
-            delta = hull_damping_matrix(moved) - hull_damping_matrix(params)
-            return Variant(extra_force=lambda zw, c, zg: hull_damping_features(zw) @ delta,
-                           minv_t=minv_t)
+        extra, minv_t = physics.parameter_variant(cand.target, step)
+        return Variant(extra_force=extra, minv_t=minv_t)
 
-        def extra(zw, c, zg):
-            total = np.zeros((len(zw), 4))
-            for name in terms:
-                fn, velocity = term_function(name)
-                z = zg if velocity == 'ground' else zw
-                total += fn(z, c, moved) - fn(z, c, params)
-            for term in extras:
-                total += term.force(zw, c, moved, zg) - term.force(zw, c, params, zg)
-            return total
+    def scaled_to(self, length_m: float) -> Library:
+        """
+        Return the library for a vessel ``length_m`` long.
 
-        return Variant(extra_force=extra if (terms or extras) else None, minv_t=minv_t)
+        Absolute scales (terms, and parameters whose nominal value is zero) follow
+        Froude's law from the length the file was written for (``reference_length_m``).
+        """
+        if not self.reference_length_m:
+            return self
+        ratio = length_m / self.reference_length_m
 
-    def absolute_scale(self, cand: Candidate, params: VesselParams) -> float:
+        def scaled(c: Candidate) -> Candidate:
+            size = c.scale * ratio ** froude_power(c.unit)
+            return dataclasses.replace(c, **({'absolute_scale': size} if c.kind == 'parameter'
+                                             else {'scale': size}))
+
+        return Library((scaled(c) for c in self.candidates), self.family, length_m)
+
+    def absolute_scale(self, cand: Candidate, physics: Physics) -> float:
         """Return the relevant size of a coefficient in its unit (parameters: relative)."""
         if cand.kind == 'parameter':
-            nominal = abs(getattr(params, cand.target))
-            return cand.scale * nominal if nominal > 0 else cand.scale
+            nominal = abs(physics.parameter(cand.target))
+            return cand.scale * nominal if nominal > 0 else (cand.absolute_scale or cand.scale)
         return cand.scale
 
 
-def _candidate(item: Mapping, index: int, source: str) -> Candidate:
+def _candidate(item: Mapping, index: int, source: str, family: Family) -> Candidate:
     where = f'{source}: candidates[{index}]'
     allowed = ('name', 'kind', 'category', 'parameter', 'term', 'dofs', 'scale', 'description',
                'requires')
@@ -211,39 +187,50 @@ def _candidate(item: Mapping, index: int, source: str) -> Candidate:
         raise LibraryError(f'{where} ({name}): scale must be a number > 0, got {scale!r}')
     requires = tuple(item.get('requires', ()))
     description = str(item.get('description', ''))
+    letters = ''.join(family.dofs)
     if kind == 'parameter':
         target = str(item.get('parameter', ''))
-        known = [f.name for f in fields(VesselParams) if f.name != 'name']
+        known = family.parameter_names()
         if target not in known:
             raise LibraryError(f'{where} ({name}): unknown parameter {target!r}'
-                               f'{did_you_mean(target, known)}')
-        dofs = str(item.get('dofs', _OTHER_DOFS.get(target, target[0])))
-        unit = parameter_unit(target)
+                               f'{did_you_mean(target, known)} of the {family.title}')
+        dofs = str(item.get('dofs', family.parameter_dofs(target)))
+        unit = family.parameter_unit(target)
     elif kind == 'term':
         target = str(item.get('term', ''))
-        try:
-            term_function(target)
-        except KeyError:
-            known = sorted(CANDIDATES) + sorted(TERMS)
+        known = sorted(n for n, t in family.terms.items() if t.kind != 'feature')
+        if target not in known:
             raise LibraryError(f'{where} ({name}): unknown term {target!r}'
-                               f'{did_you_mean(target, known)}') from None
+                               f'{did_you_mean(target, known)} of the {family.title}')
+        term = family.terms[target]
         dofs = str(item.get('dofs', ''))
-        unit = CANDIDATES[target].unit if target in CANDIDATES else '1 (fraction of the term)'
-        description = description or (CANDIDATES[target].description if target in CANDIDATES
-                                      else TERMS[target].description)
+        unit = term.unit if term.kind == 'candidate' else '1 (fraction of the term)'
+        description = description or term.description
     else:
-        target, dofs, unit = 'current', 'XYKN', 'm/s'
-    if not dofs or any(d not in DOFS for d in dofs):
-        raise LibraryError(f'{where} ({name}): dofs must be letters of XYKN, got {dofs!r}')
+        target, dofs, unit = 'current', letters, 'm/s'
+    if not dofs or any(d not in letters for d in dofs):
+        raise LibraryError(f'{where} ({name}): dofs must be letters of {letters}, got '
+                           f'{dofs!r}')
     return Candidate(name, kind, category, target, dofs, unit, float(scale), description,
                      requires)
 
 
-def load_library(path: str | Path | None = None) -> Library:
-    """Read a library YAML file (default: the package's config/library.yaml)."""
-    path = Path(path) if path else config_dir() / 'library.yaml'
+def library_path(family: str) -> Path:
+    """Path of a family's packaged library (config/library/FAMILY.yaml)."""
+    return config_dir() / 'library' / f'{family}.yaml'
+
+
+def load_library(path: str | Path | None, family: Family) -> Library:
+    """Read a library YAML file of ``family`` (default: the family's packaged one)."""
+    path = Path(path) if path else library_path(family.name)
     data = read_yaml(path, LibraryError, 'the library') or {}
     items = data.get('candidates') if isinstance(data, Mapping) else None
     if not isinstance(items, list) or not items:
         raise LibraryError(f'{path}: expected a non-empty list under candidates:')
-    return Library(_candidate(item, i, str(path)) for i, item in enumerate(items))
+    reference = data.get('reference_length_m')
+    if reference is not None and (isinstance(reference, bool) or not isinstance(
+            reference, (int, float)) or not reference > 0):
+        raise LibraryError(f'{path}: reference_length_m must be a length > 0 (m), got '
+                           f'{reference!r}')
+    return Library((_candidate(item, i, str(path), family) for i, item in enumerate(items)),
+                   family.name, reference)

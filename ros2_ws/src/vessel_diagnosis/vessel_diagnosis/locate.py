@@ -6,14 +6,16 @@ Residuals of the nominal physics on the diagnosis runs:
 - one-step: z_k+1 measured minus predicted from the measured z_k (``Predictor.one_step``);
 - multistep: measured minus free-run prediction ``horizon`` samples after a measured start;
 - generalized force: the one-step velocity residual as the force that would explain it,
-  M dnu / dt (N, N m about CO, FRD), low-passed (zero-phase) to remove the wave-frequency
-  forcing that the recordings do not measure.
+  M dnu / dt (N, N m about the family's reference point, FRD, per DOF of the family),
+  low-passed (zero-phase) to remove the wave-frequency forcing that the recordings do
+  not measure.
 
 Regime variables per sample: speed u (m/s), turn rate r (deg/s), apparent wind angle
-gamma_r (deg, where the apparent wind comes from, + starboard) and speed (m/s), sea
-state (significant wave height from the recordings' metadata when every run has it, else
-a roll-motion proxy: the rolling standard deviation of roll minus its 60-s mean, deg) and
-heading (deg from north). Maps bin each residual against each regime variable (bin mean
+gamma_r (deg, where the apparent wind comes from, + starboard) and speed (m/s) where the
+vessel measures the wind, sea state (significant wave height from the recordings'
+metadata when every run has it, else, for a vessel with roll, a roll-motion proxy: the
+rolling standard deviation of roll minus its 60-s mean, deg) and heading (deg from
+north). Maps bin each residual against each regime variable (bin mean
 with a 95 % interval from the effective sample size); the correlation ratio eta^2 (the
 share of the residual's variance the bins explain) ranks how strongly a residual depends
 on a regime. Heading also gets eta^2 within runs, because a current's signature (a
@@ -31,16 +33,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-from vessel_diagnosis.design import STATES
+from vessel_description import Vessel
+from vessel_description.vocabulary import STATES as STATE_VOCABULARY
 from vessel_diagnosis.predict import Predictor
 from vessel_diagnosis.recordings import Run
 from vessel_diagnosis.selection import effective_sample_ratio
-from vessel_physics.augmented import Physics
-from vessel_physics.mass import mass_matrix
+from vessel_physics.family import Physics
 
-DOF_NAMES = ('X', 'Y', 'K', 'N')
-DOF_UNITS = ('N', 'N', 'N m', 'N m')
-STATE_UNITS = ('m/s', 'm/s', 'rad/s', 'rad/s', 'rad')
+FORCE_UNITS = {'X': 'N', 'Y': 'N', 'Z': 'N', 'K': 'N m', 'M': 'N m', 'N': 'N m'}
 REGIMES = {
     'speed': 'speed u (m/s)',
     'turn_rate': 'turn rate r (deg/s)',
@@ -50,6 +50,16 @@ REGIMES = {
     'heading': 'heading (deg from north)',
 }
 ROLL_MEAN_S = 60.0   # roll is compared with its own running mean over this span (proxy)
+
+
+def regimes_for(vessel: Vessel, runs: Sequence[Run]) -> dict[str, str]:
+    """Return the regimes a vessel's recordings can be mapped against (module docstring)."""
+    out = dict(REGIMES)
+    if 'wind' not in vessel.environment:
+        del out['wind_angle'], out['wind_speed']
+    if not vessel.has_roll and not all('wave_hs_m' in r.info for r in runs):
+        del out['sea_state']
+    return out
 
 
 def lowpass_runs(x: np.ndarray, run_index: np.ndarray, period_s: float, dt: float,
@@ -68,16 +78,18 @@ def lowpass_runs(x: np.ndarray, run_index: np.ndarray, period_s: float, dt: floa
 class Residuals:
     """Nominal residuals and regimes of all diagnosis runs (rows = sample pairs)."""
 
-    one_step: np.ndarray      # (n, 5) measured minus one-step prediction
-    force: np.ndarray         # (n, 4) low-passed generalized force residual
+    one_step: np.ndarray      # (n, n_state) measured minus one-step prediction
+    force: np.ndarray         # (n, n_dof) low-passed generalized force residual
     regimes: dict[str, np.ndarray]   # name -> (n,)
     run_index: np.ndarray     # (n,)
     time: np.ndarray          # (n,) s since the run's start
-    multistep: np.ndarray     # (m, 5) free-run residual at the horizon
+    multistep: np.ndarray     # (m, n_state) free-run residual at the horizon
     multistep_regimes: dict[str, np.ndarray]
     multistep_run: np.ndarray  # (m,)
     sea_state_label: str
     run_ids: tuple[str, ...]
+    states: tuple[str, ...]
+    dofs: tuple[str, ...]
 
     @property
     def sea_state_axis(self) -> str:
@@ -86,16 +98,19 @@ class Residuals:
                 else 'sea state, roll proxy (deg)')
 
 
-def sea_state(runs: Sequence[Run], window_s: float) -> tuple[list[np.ndarray], str]:
+def sea_state(runs: Sequence[Run], window_s: float, vessel: Vessel
+              ) -> tuple[list[np.ndarray], str]:
     """Per-sample sea state of each run: metadata Hs (m) when all runs have it, else proxy."""
     if all('wave_hs_m' in r.info for r in runs):
         return ([np.full(r.length, float(r.info['wave_hs_m'])) for r in runs],
                 "significant wave height Hs (m, from the recordings' metadata)")
+    if not vessel.has_roll:
+        return [np.zeros(r.length) for r in runs], 'none (no roll states, no metadata)'
     out = []
     for run in runs:
         n_mean = max(3, int(round(ROLL_MEAN_S / run.dt)) | 1)
         n_std = max(3, int(round(window_s / run.dt)) | 1)
-        phi = run.z[:, 4]
+        phi = run.z[:, vessel.state_index('phi')]
         kernel = np.ones(n_mean) / n_mean
         wave = phi - np.convolve(np.pad(phi, n_mean // 2, mode='edge'), kernel, 'valid')
         sq = np.convolve(np.pad(wave ** 2, n_std // 2, mode='edge'), np.ones(n_std) / n_std,
@@ -104,37 +119,41 @@ def sea_state(runs: Sequence[Run], window_s: float) -> tuple[list[np.ndarray], s
     return out, 'roll-motion sea-state proxy (deg, rolling std of roll about its 60-s mean)'
 
 
-def regimes_of(run: Run, rows: np.ndarray, sea: np.ndarray) -> dict[str, np.ndarray]:
+def regimes_of(run: Run, rows: np.ndarray, sea: np.ndarray, vessel: Vessel,
+               regimes: dict[str, str]) -> dict[str, np.ndarray]:
     """Regime variables at the sample indices ``rows`` of a run."""
     z, c = run.z[rows], run.c[rows]
-    from_x = c[:, 3] * c[:, 4] + z[:, 0]
-    from_y = c[:, 3] * c[:, 5] + z[:, 1]
-    return {
-        'speed': z[:, 0],
-        'turn_rate': np.degrees(z[:, 3]),
-        'wind_angle': np.degrees(np.arctan2(from_y, from_x)),
-        'wind_speed': np.hypot(from_x, from_y),
-        'sea_state': sea[rows],
-        'heading': np.degrees(np.mod(run.psi[rows], 2 * np.pi)),
-    }
+    u, v = z[:, vessel.state_index('u')], z[:, vessel.state_index('v')]
+    out = {'speed': u, 'turn_rate': np.degrees(z[:, vessel.state_index('r')]),
+           'sea_state': sea[rows], 'heading': np.degrees(np.mod(run.psi[rows], 2 * np.pi))}
+    if 'wind_angle' in regimes:
+        speed = c[:, vessel.control_index('wind_speed')]
+        from_x = speed * c[:, vessel.control_index('wind_dir_cos')] + u
+        from_y = speed * c[:, vessel.control_index('wind_dir_sin')] + v
+        out['wind_angle'] = np.degrees(np.arctan2(from_y, from_x))
+        out['wind_speed'] = np.hypot(from_x, from_y)
+    return {k: out[k] for k in regimes}
 
 
-def compute_residuals(runs: Sequence[Run], physics: Physics, settings) -> Residuals:
+def compute_residuals(runs: Sequence[Run], physics: Physics, settings,
+                      vessel: Vessel) -> Residuals:
     """Nominal one-step, force and multistep residuals with their regimes."""
     dt = runs[0].dt
     predictor = Predictor(physics, dt, settings.prediction.substeps)
-    seas, label = sea_state(runs, settings.locate.sea_state_window_s)
+    seas, label = sea_state(runs, settings.locate.sea_state_window_s, vessel)
+    regimes = regimes_for(vessel, runs)
     one, reg, run_idx, time = [], [], [], []
     for i, run in enumerate(runs):
         pred = predictor.one_step(run.z[:-1], run.psi[:-1], run.c[:-1], run.c[1:])
         one.append(run.z[1:] - pred)
         rows = np.arange(run.length - 1)
-        reg.append(regimes_of(run, rows, seas[i]))
+        reg.append(regimes_of(run, rows, seas[i], vessel, regimes))
         run_idx.append(np.full(len(rows), i))
         time.append(run.t[:-1])
     one_step = np.concatenate(one)
     run_index = np.concatenate(run_idx)
-    force = (one_step[:, :4] / dt) @ mass_matrix(physics.params).T
+    n_dof = len(physics.family.dofs)
+    force = (one_step[:, :n_dof] / dt) @ physics.mass_matrix().T
     res = settings.residuals
     force = lowpass_runs(force, run_index, res.lowpass_period_s, dt, res.lowpass_order)
     horizon = max(1, int(round(res.multistep_horizon_s / dt)))
@@ -146,19 +165,20 @@ def compute_residuals(runs: Sequence[Run], physics: Physics, settings) -> Residu
         idx = starts[:, None] + np.arange(horizon + 1)[None, :]
         pred = predictor.simulate(run.z[starts], run.psi[starts], run.c[idx])
         multi.append(run.z[starts + horizon] - pred[:, -1])
-        multi_reg.append(regimes_of(run, starts + horizon // 2, seas[i]))
+        multi_reg.append(regimes_of(run, starts + horizon // 2, seas[i], vessel, regimes))
         multi_run.append(np.full(len(starts), i))
-    merged = {k: np.concatenate([r[k] for r in reg]) for k in REGIMES}
+    merged = {k: np.concatenate([r[k] for r in reg]) for k in regimes}
     if multi:
         multistep = np.concatenate(multi)
-        multi_merged = {k: np.concatenate([r[k] for r in multi_reg]) for k in REGIMES}
+        multi_merged = {k: np.concatenate([r[k] for r in multi_reg]) for k in regimes}
         multi_runs = np.concatenate(multi_run)
     else:
-        multistep = np.zeros((0, 5))
-        multi_merged = {k: np.zeros(0) for k in REGIMES}
+        multistep = np.zeros((0, len(vessel.state_names)))
+        multi_merged = {k: np.zeros(0) for k in regimes}
         multi_runs = np.zeros(0, dtype=int)
     return Residuals(one_step, force, merged, run_index, np.concatenate(time), multistep,
-                     multi_merged, multi_runs, label, tuple(r.run_id for r in runs))
+                     multi_merged, multi_runs, label, tuple(r.run_id for r in runs),
+                     tuple(vessel.state_names), tuple(physics.family.dofs))
 
 
 def _edges(values: np.ndarray, bins: int, regime: str) -> np.ndarray:
@@ -217,9 +237,9 @@ def regime_maps(res: Residuals, settings) -> dict:
     """Every map: family -> quantity -> regime -> binned numbers (see ``binned``)."""
     cfg = settings.locate
     families = {
-        'force': (res.force, DOF_NAMES, res.regimes, res.run_index),
-        'one_step': (res.one_step, STATES, res.regimes, res.run_index),
-        'multistep': (res.multistep, STATES, res.multistep_regimes, res.multistep_run),
+        'force': (res.force, res.dofs, res.regimes, res.run_index),
+        'one_step': (res.one_step, res.states, res.regimes, res.run_index),
+        'multistep': (res.multistep, res.states, res.multistep_regimes, res.multistep_run),
     }
     out: dict = {}
     for family, (values, names, regimes, runs) in families.items():
@@ -230,7 +250,7 @@ def regime_maps(res: Residuals, settings) -> dict:
             ratio = effective_sample_ratio(values[:, j]) if len(values) > 3 else 1.0
             out[family][name] = {}
             min_count = cfg.min_bin_samples if family != 'multistep' else 3
-            for regime in REGIMES:
+            for regime in regimes:
                 entry = binned(regimes[regime], values[:, j], regime, cfg.bins, min_count,
                                ratio)
                 if regime == 'heading':
@@ -243,17 +263,17 @@ def regime_maps(res: Residuals, settings) -> dict:
 def state_summary(res: Residuals) -> dict:
     """RMS and mean of every residual (one-step, multistep per state; force per DOF)."""
     out = {'one_step': {}, 'multistep': {}, 'force': {}}
-    for j, s in enumerate(STATES):
+    for j, s in enumerate(res.states):
         out['one_step'][s] = {'rms': float(np.sqrt(np.mean(res.one_step[:, j] ** 2))),
                               'mean': float(np.mean(res.one_step[:, j])),
-                              'unit': STATE_UNITS[j]}
+                              'unit': STATE_VOCABULARY[s][0]}
         if len(res.multistep):
             out['multistep'][s] = {'rms': float(np.sqrt(np.mean(res.multistep[:, j] ** 2))),
                                    'mean': float(np.mean(res.multistep[:, j])),
-                                   'unit': STATE_UNITS[j]}
-    for j, d in enumerate(DOF_NAMES):
+                                   'unit': STATE_VOCABULARY[s][0]}
+    for j, d in enumerate(res.dofs):
         out['force'][d] = {'rms': float(np.sqrt(np.mean(res.force[:, j] ** 2))),
-                           'mean': float(np.mean(res.force[:, j])), 'unit': DOF_UNITS[j]}
+                           'mean': float(np.mean(res.force[:, j])), 'unit': FORCE_UNITS[d]}
     return out
 
 
@@ -261,13 +281,13 @@ def departures(res: Residuals, dt: float, settings) -> list[dict]:
     """Time windows where the low-passed force residual of a DOF departs from zero."""
     cfg = settings.locate
     width = max(2, int(round(cfg.window_s / dt)))
-    ratios = [effective_sample_ratio(res.force[:, j]) for j in range(4)]
+    ratios = [effective_sample_ratio(res.force[:, j]) for j in range(len(res.dofs))]
     out = []
     for i, run_id in enumerate(res.run_ids):
         rows = np.flatnonzero(res.run_index == i)
         for start in range(0, len(rows) - width // 2, width):
             sel = rows[start:start + width]
-            for j, dof in enumerate(DOF_NAMES):
+            for j, dof in enumerate(res.dofs):
                 values = res.force[sel, j]
                 mean = float(np.mean(values))
                 se = float(np.std(values) / np.sqrt(max(len(values) * ratios[j], 1.0)))
@@ -275,7 +295,7 @@ def departures(res: Residuals, dt: float, settings) -> list[dict]:
                 if z >= cfg.window_flag and abs(mean) >= cfg.force_floor[j]:
                     out.append({'run': run_id, 'start_s': float(res.time[sel[0]]),
                                 'end_s': float(res.time[sel[-1]] + dt), 'dof': dof,
-                                'mean_force': mean, 'unit': DOF_UNITS[j], 'z_score': z})
+                                'mean_force': mean, 'unit': FORCE_UNITS[dof], 'z_score': z})
     return out
 
 

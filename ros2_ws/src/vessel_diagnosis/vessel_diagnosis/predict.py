@@ -1,14 +1,15 @@
 """
-Batch predictions of a physics (numpy): one step, and multistep from measured states.
+Batch predictions of a physics of any family (numpy): one step, and multistep.
 
-The model integrates M nu_r' = physics.force(nu_r, c, nu_ground), phi' = p and
-psi' = r cos phi (Fossen 2011; the simulator's kinematics) with classical RK4 sub-steps
-over each sample period. States and outputs are body velocities OVER GROUND, as measured;
-with a current (north, east in m/s, constant over a prediction) the model integrates the
-velocity through the water nu_r = nu_ground - (u_c, v_c), where
-(u_c, v_c) = V_c rotated into the levelled body frame at the heading psi (Fossen 2011,
-Property 10.1: for a current constant in NED the rigid-body and hydrodynamic terms can be
-written in nu_r).
+The model integrates the family's equation of motion in the vessel's vectors
+(``Physics.derivative``: M nu_r' = physics.force(nu_r, c, nu_ground) and its kinematic
+states, e.g. phi' = p) and psi' = r cos phi (Fossen 2011; the simulator's kinematics;
+cos phi = 1 without roll) with classical RK4 sub-steps over each sample period. States
+and outputs are body velocities OVER GROUND, as measured; with a current (north, east
+in m/s, constant over a prediction) the model integrates the velocity through the water
+nu_r = nu_ground - (u_c, v_c), where (u_c, v_c) = V_c rotated into the levelled body
+frame at the heading psi (Fossen 2011, Property 10.1: for a current constant in NED the
+rigid-body and hydrodynamic terms can be written in nu_r).
 
 Controls between samples are interpolated linearly (first-order hold) from c_k to
 c_{k+1}: the actuators move during a period (rudder servo 0.2 s, shaft 1 s), and a
@@ -23,20 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from vessel_physics.augmented import Physics
+from vessel_physics.family import Physics
+from vessel_physics.frames import ned_to_body
 from vessel_physics.integrator import rk4_step
-
-U, V, _, R, PHI, PSI = range(6)   # x = [u_r, v_r, p, r, phi, psi]
-N_STATE = 5
 
 
 def body_current(current: np.ndarray | None, psi: np.ndarray):
     """Return (u_c, v_c) of a NED current (..., 2) at heading psi (rad); zeros if None."""
     if current is None:
         return 0.0, 0.0
-    north, east = current[..., 0], current[..., 1]
-    cos_psi, sin_psi = np.cos(psi), np.sin(psi)
-    return north * cos_psi + east * sin_psi, -north * sin_psi + east * cos_psi
+    return ned_to_body(current[..., 0], current[..., 1], psi)
 
 
 @dataclass(frozen=True)
@@ -44,7 +41,7 @@ class Variant:
     """
     A change of the physics for one block of a batched prediction (see simulate_variants).
 
-    ``extra_force(z_water, c, z_ground) -> (n, 4)`` is added to the physics' force,
+    ``extra_force(z_water, c, z_ground) -> (n, n_dof)`` is added to the physics' force,
     ``minv_t`` replaces its (M^-1)^T, ``current_shift`` (north, east, m/s) is added to
     the rows' current.
     """
@@ -64,26 +61,32 @@ class Predictor:
         self.dt = float(dt)
         self.substeps = int(substeps)
         self._blocks: list[tuple[slice, Variant]] = []
+        states = physics.family.states
+        self.n_state, self.n_dof = len(states), len(physics.family.dofs)
+        self.u, self.v, self.r = (states.index(s) for s in ('u', 'v', 'r'))
+        self.phi = states.index('phi') if 'phi' in states else None
+        self.psi = self.n_state     # x = [z (over ground or through the water), psi]
 
     def derivative(self, x: np.ndarray, c: np.ndarray, current: np.ndarray | None):
-        """Return x' for x = [u_r, v_r, p, r, phi, psi] (n, 6) under controls c (n, 6)."""
-        z_water = x[:, :N_STATE]
+        """Return x' for x = [z_water, psi] (n, n_state + 1) under controls c (n, n_control)."""
+        z_water = x[:, :self.n_state]
         z_ground = z_water
         if current is not None:
-            u_c, v_c = body_current(current, x[:, PSI])
+            u_c, v_c = body_current(current, x[:, self.psi])
             z_ground = z_water.copy()
-            z_ground[:, U] += u_c
-            z_ground[:, V] += v_c
+            z_ground[:, self.u] += u_c
+            z_ground[:, self.v] += v_c
         tau = self.physics.force(z_water, c, z_ground)
         for rows, variant in self._blocks:
             if variant.extra_force is not None:
                 tau[rows] += variant.extra_force(z_water[rows], c[rows], z_ground[rows])
         dx = np.empty_like(x)
-        dx[:, :N_STATE] = self.physics.rates(tau, z_water)
+        dx[:, :self.n_state] = self.physics.rates(tau, z_water)
         for rows, variant in self._blocks:
             if variant.minv_t is not None:   # a candidate that changes the mass matrix
-                dx[rows, :4] = tau[rows] @ variant.minv_t
-        dx[:, PSI] = x[:, R] * np.cos(x[:, PHI])
+                dx[rows, :self.n_dof] = tau[rows] @ variant.minv_t
+        roll = np.cos(x[:, self.phi]) if self.phi is not None else 1.0
+        dx[:, self.psi] = x[:, self.r] * roll
         return dx
 
     def _advance(self, x, c0, c1, current):
@@ -99,32 +102,30 @@ class Predictor:
             x = rk4_step(f, 0.0, x, h)
         return x
 
-    @staticmethod
-    def _to_water(z, psi, current):
-        x = np.empty((len(z), 6))
-        x[:, :N_STATE] = z
-        x[:, PSI] = psi
+    def _to_water(self, z, psi, current):
+        x = np.empty((len(z), self.n_state + 1))
+        x[:, :self.n_state] = z
+        x[:, self.psi] = psi
         u_c, v_c = body_current(current, psi)
-        x[:, U] -= u_c
-        x[:, V] -= v_c
+        x[:, self.u] -= u_c
+        x[:, self.v] -= v_c
         return x
 
-    @staticmethod
-    def _to_ground(x, current):
-        z = x[:, :N_STATE].copy()
-        u_c, v_c = body_current(current, x[:, PSI])
-        z[:, U] += u_c
-        z[:, V] += v_c
+    def _to_ground(self, x, current):
+        z = x[:, :self.n_state].copy()
+        u_c, v_c = body_current(current, x[:, self.psi])
+        z[:, self.u] += u_c
+        z[:, self.v] += v_c
         return z
 
     def one_step(self, z: np.ndarray, psi: np.ndarray, c0: np.ndarray, c1: np.ndarray,
                  current: np.ndarray | None = None) -> np.ndarray:
         """
-        Predict z one period ahead for every row (n, 5).
+        Predict z one period ahead for every row (n, n_state).
 
-        ``z`` (n, 5) measured states over ground, ``psi`` (n,) heading, ``c0``, ``c1``
-        (n, 6) the controls at the start and end of the period, ``current`` (n, 2) NED
-        current per row or None.
+        ``z`` (n, n_state) measured states over ground, ``psi`` (n,) heading, ``c0``,
+        ``c1`` (n, n_control) the controls at the start and end of the period,
+        ``current`` (n, 2) NED current per row or None.
         """
         x = self._to_water(np.asarray(z, float), np.asarray(psi, float), current)
         return self._to_ground(self._advance(x, c0, c1, current), current)
@@ -132,7 +133,7 @@ class Predictor:
     def simulate(self, z0: np.ndarray, psi0: np.ndarray, c: np.ndarray,
                  current: np.ndarray | None = None) -> np.ndarray:
         """
-        Free-run predictions from measured initial states: (n, H, 5) for c (n, H + 1, 6).
+        Free-run predictions from measured initial states: (n, H, n_state) for c (n, H + 1, m).
 
         Row i starts from ``z0[i]``, ``psi0[i]`` at the time of ``c[i, 0]``; step k of the
         output is the state at the time of ``c[i, k + 1]``.
@@ -140,7 +141,7 @@ class Predictor:
         c = np.asarray(c, float)
         horizon = c.shape[1] - 1
         x = self._to_water(np.asarray(z0, float), np.asarray(psi0, float), current)
-        out = np.empty((len(x), horizon, N_STATE))
+        out = np.empty((len(x), horizon, self.n_state))
         for k in range(horizon):
             x = self._advance(x, c[:, k], c[:, k + 1], current)
             out[:, k] = self._to_ground(x, current)
@@ -150,7 +151,7 @@ class Predictor:
                           current: np.ndarray | None, variants: Sequence[Variant]
                           ) -> np.ndarray:
         """
-        Free runs of the physics and of each variant at once: (1 + V, n, H, 5).
+        Free runs of the physics and of each variant at once: (1 + V, n, H, n_state).
 
         Block 0 is the physics itself, block i + 1 variant i; all blocks start from the
         same states. One vectorized integration evaluates the shared force terms once for
@@ -171,4 +172,4 @@ class Predictor:
             out = self.simulate(*tiled, cur if shifted else None)
         finally:
             self._blocks = []
-        return out.reshape(copies, n, out.shape[1], N_STATE)
+        return out.reshape(copies, n, out.shape[1], self.n_state)

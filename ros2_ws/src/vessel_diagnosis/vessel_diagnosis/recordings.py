@@ -1,10 +1,12 @@
 """
-Recordings as arrays: datasets or rosbag2 recordings, and the held-out split.
+Recordings as arrays in a vessel's own vectors: datasets or bags, and the held-out split.
 
-``load_recordings(paths)`` accepts dataset directories (``vessel_datasets.format``) and
-recordings that ``vessel_datasets.pipeline`` can read (rosbag2 MCAP directories or files,
-with the default topic map or a given one). Every failure is a ``RecordingsError`` whose
-message is one line saying what is missing and what it is needed for.
+``load_recordings(paths, vessel)`` accepts dataset directories (``vessel_datasets.format``)
+and recordings that ``vessel_datasets.pipeline`` can read (rosbag2 MCAP directories or
+files, with the vessel file's topic map or a given one). The vessel is the one the
+datasets carry, or the one given (``--vessel``); bags carry none and need it. Every
+failure -- a missing column, a NaN in one run, a dataset that cannot be read -- is a
+``RecordingsError`` whose message is one line saying what is wrong and where.
 """
 
 from __future__ import annotations
@@ -18,23 +20,7 @@ import pandas as pd
 
 from vessel_datasets.format import MANIFEST, DatasetError, read_dataset, split_runs
 from vessel_datasets.topic_map import topic_map_for
-from vessel_description import Vessel, VesselError, load_vessel
-
-# The diagnosis' physics family is the 4-DOF patrol-boat model (vessel_physics), so it
-# diagnoses recordings with that vessel's vectors; others are refused with one line.
-DIAGNOSED_VESSEL = load_vessel('patrol_boat')
-STATE_COLUMNS = DIAGNOSED_VESSEL.state_names
-CONTROL_COLUMNS = DIAGNOSED_VESSEL.control_names
-REQUIRED = ('t',) + STATE_COLUMNS + ('psi',) + CONTROL_COLUMNS
-WHY = {  # what each group of columns is needed for (for error messages)
-    'u': 'body velocities (/vessel/odom twist)', 'v': 'body velocities (/vessel/odom twist)',
-    'p': 'body rates (/vessel/odom twist)', 'r': 'body rates (/vessel/odom twist)',
-    'phi': 'attitude (/vessel/odom orientation)', 'psi': 'attitude (/vessel/odom orientation)',
-    'n': 'actuators (/vessel/actuators)', 'delta_port': 'actuators (/vessel/actuators)',
-    'delta_stbd': 'actuators (/vessel/actuators)', 'wind_speed': 'wind (/vessel/wind)',
-    'wind_dir_cos': 'wind (/vessel/wind)', 'wind_dir_sin': 'wind (/vessel/wind)',
-    't': 'time stamps',
-}
+from vessel_description import Vessel, VesselError
 
 
 class RecordingsError(ValueError):
@@ -43,14 +29,14 @@ class RecordingsError(ValueError):
 
 @dataclass
 class Run:
-    """One run at a fixed rate: measured states, heading, controls, optional truth."""
+    """One run at a fixed rate in the vessel's vectors: states, heading, controls, truth."""
 
     run_id: str
     t: np.ndarray                 # (T,) s
-    z: np.ndarray                 # (T, 5) u, v (m/s), p, r (rad/s), phi (rad); FRD
+    z: np.ndarray                 # (T, n_state) the vessel's states (FRD, SI)
     psi: np.ndarray               # (T,) heading (rad, NED, unwrapped)
-    c: np.ndarray                 # (T, 6) n, delta_port, delta_stbd, wind speed, cos, sin
-    z_true: np.ndarray | None = None   # (T, 5) noise-free states (simulated data only)
+    c: np.ndarray                 # (T, n_control) actuators, then environment columns
+    z_true: np.ndarray | None = None   # (T, n_state) noise-free states (simulated data only)
     split: str = 'unused'
     info: dict = field(default_factory=dict)
 
@@ -72,66 +58,112 @@ class Run:
                        z_true=None if self.z_true is None else self.z_true[sl], split=split)
 
 
-def run_from_table(run_id: str, table: pd.DataFrame, split: str = 'unused',
-                   info: dict | None = None) -> Run:
-    """Build a Run from a dataset table; RecordingsError if columns are missing."""
-    missing = [c for c in REQUIRED if c not in table.columns]
+def run_from_table(run_id: str, table: pd.DataFrame, vessel: Vessel, split: str = 'unused',
+                   info: dict | None = None, where: str = '') -> Run:
+    """Build a Run from a dataset table; RecordingsError (one line) if it is unusable."""
+    required = ('t',) + vessel.state_names + ('psi',) + vessel.control_names
+    missing = [c for c in required if c not in table.columns]
     if missing:
-        needs = sorted({WHY[c] for c in missing})
-        raise RecordingsError(f'run {run_id!r} lacks {", ".join(missing)}: the diagnosis needs '
-                              f'{"; ".join(needs)}')
-    values = table[list(REQUIRED)].to_numpy(float)
+        raise RecordingsError(f'{where}run {run_id!r} lacks the columns {", ".join(missing)} '
+                              f'that vessel {vessel.name!r} has')
+    values = table[list(required)].to_numpy(float)
     if not np.isfinite(values).all():
-        bad = [c for c in REQUIRED if not np.isfinite(table[c].to_numpy(float)).all()]
-        raise RecordingsError(f'run {run_id!r} has NaN/Inf in {", ".join(bad)}')
-    true_cols = [s + '_true' for s in STATE_COLUMNS]
+        bad = [c for c in required if not np.isfinite(table[c].to_numpy(float)).all()]
+        rows = int((~np.isfinite(values)).any(axis=1).sum())
+        raise RecordingsError(f'{where}run {run_id!r} has NaN or Inf in {", ".join(bad)} '
+                              f'({rows} of {len(table)} samples): repair or drop the run '
+                              f'before diagnosing')
+    true_cols = [s + '_true' for s in vessel.state_names]
     z_true = (table[true_cols].to_numpy(float)
               if all(c in table.columns for c in true_cols) else None)
-    return Run(run_id, table['t'].to_numpy(float), table[list(STATE_COLUMNS)].to_numpy(float),
-               table['psi'].to_numpy(float), table[list(CONTROL_COLUMNS)].to_numpy(float),
-               z_true, split, dict(info or {}))
+    return Run(run_id, table['t'].to_numpy(float), table[list(vessel.state_names)].to_numpy(
+        float), table['psi'].to_numpy(float), table[list(vessel.control_names)].to_numpy(float),
+        z_true, split, dict(info or {}))
 
 
-def _load_dataset(path: Path) -> list[Run]:
+def dataset_vessel(path: Path) -> Vessel:
+    """Return the vessel description a dataset carries; one line if it cannot be read."""
+    try:
+        return read_dataset(path).vessel
+    except (DatasetError, OSError, VesselError) as exc:
+        raise RecordingsError(f'{path}: cannot read the dataset ({exc})') from None
+
+
+def _load_dataset(path: Path, vessel: Vessel) -> list[Run]:
     try:
         ds = read_dataset(path)
-        DIAGNOSED_VESSEL.check_compatible(ds.vessel, f'dataset {path}')
+        vessel.check_compatible(ds.vessel, f'dataset {path}')
         entries = {r['id']: r for r in ds.manifest['runs']}
-        return [run_from_table(rid, ds.load(rid), entries[rid].get('split', 'unused'),
-                               entries[rid].get('source', {})) for rid in ds.run_ids()]
+        runs = []
+        for rid in ds.run_ids():
+            runs.append(run_from_table(rid, ds.load(rid), vessel,
+                                       entries[rid].get('split', 'unused'),
+                                       entries[rid].get('source', {}), f'{path}: '))
+        return runs
     except VesselError as exc:
-        raise RecordingsError(f"{exc}; the diagnosis models the patrol boat's physics "
-                              f'only') from None
+        raise RecordingsError(str(exc)) from None
     except (DatasetError, OSError, KeyError) as exc:
         raise RecordingsError(f'{path}: cannot read the dataset ({exc})') from None
 
 
-def _load_bag(path: Path, topic_map=None) -> list[Run]:
+def _load_bag(path: Path, vessel: Vessel, topic_map=None) -> list[Run]:
     from vessel_datasets.bag_source import BagError
     from vessel_datasets.readers.bags import bag_to_runs
     from vessel_datasets.sources import ConversionError
     try:
-        tables = bag_to_runs(path, topic_map or topic_map_for(DIAGNOSED_VESSEL))
+        tables = bag_to_runs(path, topic_map or topic_map_for(vessel))
     except (ConversionError, BagError, OSError, ValueError) as exc:
         text = ' '.join(str(exc).split())
         raise RecordingsError(f'{path}: cannot convert the recording: {text}') from None
     if not tables:
         raise RecordingsError(f'{path}: the recording holds no run (no stretch where every '
                               f'needed topic has samples)')
-    return [run_from_table(rid, table, 'unused', {'bag': str(path)})
+    return [run_from_table(rid, table, vessel, 'unused', {'bag': str(path)}, f'{path}: ')
             for rid, table in tables.items()]
 
 
-def load_recordings(paths: Iterable[str | Path], topic_map=None) -> list[Run]:
-    """Load every run of the given dataset directories and recordings."""
-    runs: list[Run] = []
-    for path in map(Path, paths):
+def recordings_vessel(paths: Iterable[str | Path], given: Vessel | None = None) -> Vessel:
+    """
+    Return the vessel description the recordings come from.
+
+    ``given`` (offline/diagnose.py --vessel) when set, else the one the datasets carry
+    (all the same); bags carry none, so recordings of bags alone need ``given``.
+    """
+    paths = [Path(p) for p in paths]
+    for path in paths:
         if not path.exists():
             raise RecordingsError(f'{path}: no such file or directory')
+    if given is not None:
+        return given
+    found: dict[str, Vessel] = {}
+    for path in paths:
         if (path / MANIFEST).is_file():
-            runs += _load_dataset(path)
+            vessel = dataset_vessel(path)
+            found.setdefault(repr(vessel.to_dict()), vessel)
+    if len(found) > 1:
+        raise RecordingsError('the recordings carry different vessel descriptions ('
+                              + ', '.join(v.source for v in found.values())
+                              + '); name the one they come from with --vessel')
+    if not found:
+        raise RecordingsError('bags carry no vessel description: name the vessel file they '
+                              'were recorded from with --vessel')
+    return next(iter(found.values()))
+
+
+def load_recordings(paths: Iterable[str | Path], vessel: Vessel | None = None,
+                    topic_map=None) -> list[Run]:
+    """Load every run of the given dataset directories and recordings, in ``vessel``'s vectors."""
+    paths = [Path(p) for p in paths]
+    for path in paths:
+        if not path.exists():
+            raise RecordingsError(f'{path}: no such file or directory')
+    vessel = recordings_vessel(paths, vessel)
+    runs: list[Run] = []
+    for path in paths:
+        if (path / MANIFEST).is_file():
+            runs += _load_dataset(path, vessel)
         else:
-            runs += _load_bag(path, topic_map)
+            runs += _load_bag(path, vessel, topic_map)
     ids = [r.run_id for r in runs]
     if len(set(ids)) != len(ids):
         raise RecordingsError(f'run ids repeat across the recordings: '
@@ -143,35 +175,6 @@ def load_recordings(paths: Iterable[str | Path], topic_map=None) -> list[Run]:
         raise RecordingsError(f'runs have different sample rates {sorted(rates)} Hz; '
                               f'convert them at one rate')
     return runs
-
-
-def recordings_vessel(paths: Iterable[str | Path], given: Vessel | None = None) -> Vessel:
-    """
-    Return the vessel description the recordings come from.
-
-    ``given`` (offline/diagnose.py --vessel) when set, else the description the datasets
-    carry; bags carry none and are read with the diagnosed vessel's topic map, so its
-    description is theirs. It must have the diagnosed vessel's vectors and rate.
-    """
-    found: dict[str, Vessel] = {}
-    if given is None:
-        for path in map(Path, paths):
-            if (path / MANIFEST).is_file():
-                vessel = read_dataset(path).vessel
-                found.setdefault(repr(vessel.to_dict()), vessel)
-            else:
-                found.setdefault(repr(DIAGNOSED_VESSEL.to_dict()), DIAGNOSED_VESSEL)
-        if len(found) > 1:
-            raise RecordingsError('the recordings carry different vessel descriptions ('
-                                  + ', '.join(v.source for v in found.values())
-                                  + '); name the one they come from with --vessel')
-        given = next(iter(found.values()), DIAGNOSED_VESSEL)
-    try:
-        DIAGNOSED_VESSEL.check_compatible(given, 'the vessel file')
-    except VesselError as exc:
-        raise RecordingsError(f"{exc}; the diagnosis models the patrol boat's physics "
-                              f'only') from None
-    return given
 
 
 def split_holdout(runs: Sequence[Run], fraction: float, seed: int
@@ -197,14 +200,17 @@ def split_holdout(runs: Sequence[Run], fraction: float, seed: int
             f'the last {fraction:.0%} of the only run')
 
 
-def signal_ranges(runs: Sequence[Run]) -> dict[str, dict[str, float]]:
-    """Range and within-run spread (mean of per-run std) of the signals that excite physics."""
+def signal_ranges(runs: Sequence[Run], vessel: Vessel) -> dict[str, dict[str, float]]:
+    """Range and within-run spread (mean of per-run std) of what excites the physics."""
     def signals(run: Run) -> dict[str, np.ndarray]:
-        return {'speed_mps': run.z[:, 0],
-                'shaft_speed_rpm': run.c[:, 0] * 60.0 / (2.0 * np.pi),
-                'rudder_deg': np.degrees(0.5 * (run.c[:, 1] + run.c[:, 2])),
-                'yaw_rate_deg_s': np.degrees(run.z[:, 3]),
-                'wind_speed_mps': run.c[:, 3]}
+        out = {'speed_mps': run.z[:, vessel.state_index('u')],
+               'yaw_rate_deg_s': np.degrees(run.z[:, vessel.state_index('r')])}
+        for a in vessel.actuators:
+            values = run.c[:, vessel.control_index(a.name)]
+            out[f'{a.name}_{a.unit}'] = values
+        if 'wind' in vessel.environment:
+            out['wind_speed_mps'] = run.c[:, vessel.control_index('wind_speed')]
+        return out
     per_run = [signals(r) for r in runs]
     out = {}
     for name in per_run[0]:

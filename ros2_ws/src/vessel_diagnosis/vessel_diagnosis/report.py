@@ -16,8 +16,8 @@ matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from vessel_diagnosis.design import STATES  # noqa: E402
-from vessel_diagnosis.locate import DOF_NAMES, DOF_UNITS, REGIMES, STATE_UNITS  # noqa: E402
+from vessel_description.vocabulary import STATES as STATE_VOCABULARY  # noqa: E402
+from vessel_diagnosis.locate import FORCE_UNITS  # noqa: E402
 
 DPI = 110
 
@@ -36,8 +36,16 @@ def _pct(x) -> str:
     return '–' if x is None else f'{100 * x:+.0f} %'
 
 
+def _vectors(result: dict) -> tuple[list[str], list[str], list[str], list[str]]:
+    """Return the vessel's states and the family's forces, with units, from the findings."""
+    states = result['vessel']['states']
+    dofs = result['nominal_physics']['dofs']
+    return (states, [STATE_VOCABULARY[s][0] for s in states], dofs,
+            [FORCE_UNITS[d] for d in dofs])
+
+
 def _map_figure(path: Path, maps: dict, names, units, title: str, regimes_label: dict) -> None:
-    regimes = list(REGIMES)
+    regimes = list(regimes_label)
     fig, axes = plt.subplots(len(names), len(regimes), figsize=(2.6 * len(regimes),
                                                                  1.9 * len(names)),
                              squeeze=False, sharex='col')
@@ -67,15 +75,15 @@ def _map_figure(path: Path, maps: dict, names, units, title: str, regimes_label:
     plt.close(fig)
 
 
-def _windows_figure(path: Path, series: dict, windows: list[dict]) -> None:
+def _windows_figure(path: Path, series: dict, windows: list[dict], dofs, units) -> None:
     runs = list(series)[:4]
     if not runs:
         return
-    fig, axes = plt.subplots(4, len(runs), figsize=(4.0 * len(runs), 6.5), squeeze=False,
-                             sharex='col')
+    fig, axes = plt.subplots(len(dofs), len(runs), figsize=(4.0 * len(runs), 6.5),
+                             squeeze=False, sharex='col')
     for j, run in enumerate(runs):
         t = np.array(series[run]['t'])
-        for i, dof in enumerate(DOF_NAMES):
+        for i, dof in enumerate(dofs):
             ax = axes[i, j]
             ax.plot(t / 60.0, np.array(series[run][dof]) / 1e3, lw=0.8)
             for w in windows:
@@ -85,10 +93,10 @@ def _windows_figure(path: Path, series: dict, windows: list[dict]) -> None:
             ax.axhline(0.0, color='k', lw=0.5)
             ax.tick_params(labelsize=7)
             if j == 0:
-                ax.set_ylabel(f'{dof} (k{DOF_UNITS[i]})', fontsize=8)
+                ax.set_ylabel(f'{dof} (k{units[i]})', fontsize=8)
             if i == 0:
                 ax.set_title(run, fontsize=8)
-            if i == 3:
+            if i == len(dofs) - 1:
                 ax.set_xlabel('time (min)', fontsize=8)
     fig.suptitle('Low-passed residual generalized force (shaded: departing windows)',
                  fontsize=10)
@@ -118,7 +126,7 @@ def _candidates_figure(path: Path, candidates: list[dict]) -> None:
     plt.close(fig)
 
 
-def _before_after_figure(path: Path, metrics: dict) -> None:
+def _before_after_figure(path: Path, metrics: dict, states) -> None:
     one = metrics.get('one_step_rmse', {})
     fc = metrics.get('forecast', {})
     models = [m for m in ('nominal', 'augmented') if one.get(m)]
@@ -126,20 +134,21 @@ def _before_after_figure(path: Path, metrics: dict) -> None:
         return
     fig, axes = plt.subplots(1, 3, figsize=(13.0, 3.4))
     width = 0.38
-    x = np.arange(len(STATES))
+    x = np.arange(len(states))
     for k, model in enumerate(models):
-        ref = np.array([one[models[0]][s] for s in STATES])
-        vals = np.array([one[model][s] for s in STATES])
+        ref = np.array([one[models[0]][s] for s in states])
+        vals = np.array([one[model][s] for s in states])
         axes[0].bar(x + (k - 0.5) * width, vals / ref, width, label=model)
         if fc.get(model):
-            ref_f = np.array([fc[models[0]]['rmse'][s] for s in STATES])
-            vals_f = np.array([fc[model]['rmse'][s] for s in STATES])
+            ref_f = np.array([fc[models[0]]['rmse'][s] for s in states])
+            vals_f = np.array([fc[model]['rmse'][s] for s in states])
             axes[1].bar(x + (k - 0.5) * width, vals_f / ref_f, width, label=model)
             minutes = fc[model]['trajectory'].get('per_minute_mean') or []
             axes[2].plot(np.arange(1, len(minutes) + 1), minutes, 'o-', ms=3, label=model)
+    steps = metrics.get('horizon')
     for ax, title in ((axes[0], 'one-step RMSE (relative to nominal)'),
-                      (axes[1], '900-step forecast RMSE (relative to nominal)')):
-        ax.set_xticks(x, STATES)
+                      (axes[1], f'{steps}-step forecast RMSE (relative to nominal)')):
+        ax.set_xticks(x, states)
         ax.axhline(1.0, color='k', lw=0.5)
         ax.set_title(title, fontsize=9)
         if ax.get_legend_handles_labels()[0]:
@@ -150,18 +159,20 @@ def _before_after_figure(path: Path, metrics: dict) -> None:
     if axes[2].get_legend_handles_labels()[0]:
         axes[2].legend(fontsize=7)
     if not axes[1].get_legend_handles_labels()[0]:
-        axes[1].set_title('no 900-step forecast fits in the held-out runs', fontsize=9)
+        axes[1].set_title(f'no {steps}-step forecast fits in the held-out runs', fontsize=9)
     fig.tight_layout()
     fig.savefig(path, dpi=DPI)
     plt.close(fig)
 
 
 def _findings_table(findings: list[dict]) -> list[str]:
-    lines = ['| DOF | term | category | coefficient | unit | 95 % interval | inclusion '
-             'probability | affected states | cannot be told apart from |',
-             '|---|---|---|---|---|---|---|---|---|']
+    lines = ['| DOF | term | category | coefficient | unit | 95 % interval | of which noise '
+             '| runs disagree (I²) | inclusion probability | affected states | '
+             'cannot be told apart from |', '|---|---|---|---|---|---|---|---|---|---|---|']
     for f in findings:
         ci = f['ci95'] or [None, None]
+        noise = f.get('ci95_noise') or [None, None]
+        het = f.get('heterogeneity') or {}
         rel = (f' ({_pct(f["relative_change"])} of nominal)'
                if f.get('relative_change') is not None else '')
         aliases = ', '.join(f'{a["term"]} ({a["category"]}, {100 * a["share"]:.0f} %)'
@@ -169,40 +180,58 @@ def _findings_table(findings: list[dict]) -> list[str]:
         lines.append(f'| {f["dof"]} | `{f["term"]}` | {f["category"]} | '
                      f'{_fmt(f["coefficient"], 4)}{rel} | {f["unit"]} | '
                      f'[{_fmt(ci[0], 4)}, {_fmt(ci[1], 4)}] | '
+                     f'[{_fmt(noise[0], 4)}, {_fmt(noise[1], 4)}] | '
+                     f'{_fmt(het.get("i2"), 2)} | '
                      f'{_fmt(f["inclusion_probability"], 2)} | '
                      f'{", ".join(f["affected_states"]) or "–"} | {aliases} |')
     return lines
 
 
-def _metrics_tables(metrics: dict) -> list[str]:
+def _kept_out_table(kept_out: list[dict]) -> list[str]:
+    lines = ['Found with certainty, but kept out of the augmented physics because it changes '
+             'held-out forecasts too little (safety-relevant changes belong here too: read '
+             'them):', '', '| term | category | size | 95 % interval | inclusion probability '
+             '| why kept out |', '|---|---|---|---|---|---|']
+    for f in kept_out:
+        size = (f'{f["parameter"]} {_fmt(f["nominal"], 4)} -> {_fmt(f["value"], 4)} '
+                f'({_pct(f["relative_change"])})' if f.get('parameter') else
+                f'{_fmt(f["coefficient"], 4)} {f["unit"]}')
+        ci = f['ci95']
+        lines.append(f'| `{f["term"]}` | {f["category"]} | {size} | '
+                     f'[{_fmt(ci[0], 4)}, {_fmt(ci[1], 4)}] | '
+                     f'{_fmt(f["inclusion_probability"], 2)} | {f["why_kept_out"]} |')
+    return lines + ['']
+
+
+def _metrics_tables(metrics: dict, states, state_units) -> list[str]:
     one = metrics.get('one_step_rmse', {})
     fc = metrics.get('forecast', {})
     imp = metrics.get('improvement', {})
+    steps = metrics.get('horizon')
     lines = [f'Held-out runs: {", ".join(metrics.get("runs", []))}; errors after the first '
              f'{metrics.get("start_sample", 0)} samples of each (per-run terms are estimated '
              f'there); targets: {metrics.get("target")} states; '
-             f'{metrics.get("n_forecasts", 0)} forecasts of {metrics.get("horizon", 900)} '
-             f'steps.', '',
+             f'{metrics.get("n_forecasts", 0)} forecasts of {steps} steps.', '',
              '| error | model | ' + ' | '.join(f'{s} ({u})' for s, u in
-                                               zip(STATES, STATE_UNITS, strict=True))
+                                               zip(states, state_units, strict=True))
              + ' | trajectory (m) |',
-             '|---|---|' + '---|' * (len(STATES) + 1)]
+             '|---|---|' + '---|' * (len(states) + 1)]
     for model in ('nominal', 'augmented'):
         if one.get(model):
             lines.append(f'| one-step RMSE | {model} | '
-                         + ' | '.join(_fmt(one[model][s]) for s in STATES) + ' | |')
+                         + ' | '.join(_fmt(one[model][s]) for s in states) + ' | |')
     for model in ('nominal', 'augmented'):
         if fc.get(model):
             t = fc[model]['trajectory']
-            lines.append(f'| 900-step RMSE | {model} | '
-                         + ' | '.join(_fmt(fc[model]['rmse'][s]) for s in STATES)
+            lines.append(f'| {steps}-step RMSE | {model} | '
+                         + ' | '.join(_fmt(fc[model]['rmse'][s]) for s in states)
                          + f' | {_fmt(t["mean"], 4)} ± {_fmt(t["ci95"], 2)} |')
     if imp.get('one_step_rmse'):
         lines.append('| one-step change | | ' + ' | '.join(
-            _pct(-imp['one_step_rmse'][s]) for s in STATES) + ' | |')
+            _pct(-imp['one_step_rmse'][s]) for s in states) + ' | |')
     if imp.get('forecast_rmse'):
-        lines.append('| 900-step change | | ' + ' | '.join(
-            _pct(-imp['forecast_rmse'][s]) for s in STATES)
+        lines.append(f'| {steps}-step change | | ' + ' | '.join(
+            _pct(-imp['forecast_rmse'][s]) for s in states)
             + f' | {_pct(-imp["trajectory"]) if imp.get("trajectory") is not None else "–"} |')
     return lines
 
@@ -212,24 +241,23 @@ def write_report(out: Path, result: dict, series: dict | None = None) -> None:
     out.mkdir(parents=True, exist_ok=True)
     (out / 'findings.json').write_text(json.dumps(result, indent=2, allow_nan=False))
     loc = result.get('locate') or {}
-    regimes_label = {**REGIMES, **loc.get('regimes', {})}
-    figures = []
+    regimes_label = dict(loc.get('regimes', {}))
+    states, state_units, dofs, dof_units = _vectors(result)
     if loc.get('maps'):
-        _map_figure(out / 'locate_force_maps.png', loc['maps']['force'], DOF_NAMES, DOF_UNITS,
+        _map_figure(out / 'locate_force_maps.png', loc['maps']['force'], dofs, dof_units,
                     'Residual generalized force of the nominal physics (low-passed) '
                     'against regimes', regimes_label)
-        _map_figure(out / 'locate_multistep_maps.png', loc['maps']['multistep'], STATES,
-                    STATE_UNITS, f'Free-run residual after {loc.get("multistep_horizon_s")} s '
+        _map_figure(out / 'locate_multistep_maps.png', loc['maps']['multistep'], states,
+                    state_units, f'Free-run residual after {loc.get("multistep_horizon_s")} s '
                     'against regimes', regimes_label)
-        figures += ['locate_force_maps.png', 'locate_multistep_maps.png']
     if series:
-        _windows_figure(out / 'locate_windows.png', series, loc.get('windows', []))
-        figures.append('locate_windows.png')
+        _windows_figure(out / 'locate_windows.png', series, loc.get('windows', []), dofs,
+                        dof_units)
     if result.get('candidates'):
         _candidates_figure(out / 'candidates.png', result['candidates'])
     metrics = result.get('metrics') or {}
     if (metrics.get('one_step_rmse') or {}).get('augmented'):
-        _before_after_figure(out / 'before_after.png', metrics)
+        _before_after_figure(out / 'before_after.png', metrics, states)
     lines = _markdown(result, loc, metrics)
     (out / 'report.md').write_text('\n'.join(lines) + '\n')
 
@@ -237,8 +265,8 @@ def write_report(out: Path, result: dict, series: dict | None = None) -> None:
 def _header(result: dict) -> list[str]:
     rec, nominal = result['recordings'], result['nominal_physics']
     lines = ['# Simulation-to-reality diagnosis', '', f'**{result["summary"]}**', '',
-             f'Status: `{result["status"]}`. Nominal physics: `{nominal["source"]}` '
-             f'(terms: {", ".join(nominal["terms"])}).', '',
+             f'Status: `{result["status"]}`. Nominal physics: `{nominal["source"]}`, the '
+             f'{nominal["title"]} (terms: {", ".join(nominal["terms"])}).', '',
              f'Recordings: {rec["n_runs"]} runs, {rec["hours"]:.2f} h; diagnosed on '
              f'{len(rec["diagnosis_runs"])} runs ({rec["diagnosis_hours"]:.2f} h), held out '
              f'{len(rec["held_out_runs"])} ({rec["held_out_how"]}). Run time '
@@ -271,25 +299,26 @@ def _vessel_lines(result: dict) -> list[str]:
     return lines + ['']
 
 
-def _locate_section(loc: dict) -> list[str]:
+def _locate_section(loc: dict, result: dict) -> list[str]:
     lines = ['## 1. Where the nominal physics departs', '']
     if not loc:
         return lines + ['Not located (the recordings could not be diagnosed).', '']
+    states, _, dofs, dof_units = _vectors(result)
     summ = loc['summary']
-    lines += ['| residual | ' + ' | '.join(STATES) + ' |', '|---|' + '---|' * len(STATES)]
+    lines += ['| residual | ' + ' | '.join(states) + ' |', '|---|' + '---|' * len(states)]
     horizon = f'{loc["multistep_horizon_s"]:.0f}-s RMS'
-    for family, label in (('one_step', 'one-step RMS'), ('multistep', horizon)):
-        if summ.get(family):
+    for kind, label in (('one_step', 'one-step RMS'), ('multistep', horizon)):
+        if summ.get(kind):
             lines.append(f'| {label} | '
-                         + ' | '.join(_fmt(summ[family][s]['rms']) for s in STATES) + ' |')
+                         + ' | '.join(_fmt(summ[kind][s]['rms']) for s in states) + ' |')
     lines += ['', '| DOF | mean force | RMS (low-passed) | strongest regime (eta²) | '
               'departing windows |', '|---|---|---|---|---|']
-    for j, dof in enumerate(DOF_NAMES):
+    for j, dof in enumerate(dofs):
         f = summ['force'][dof]
         top = ', '.join(f'{r} ({v:.2f})' for r, v in loc['ranking']['force'][dof][:2])
         n_win = sum(1 for w in loc['windows'] if w['dof'] == dof)
-        lines.append(f'| {dof} | {_fmt(f["mean"])} {DOF_UNITS[j]} | {_fmt(f["rms"])} '
-                     f'{DOF_UNITS[j]} | {top} | {n_win} of {loc["windows_checked"]} |')
+        lines.append(f'| {dof} | {_fmt(f["mean"])} {dof_units[j]} | {_fmt(f["rms"])} '
+                     f'{dof_units[j]} | {top} | {n_win} of {loc["windows_checked"]} |')
     lines += ['', f'Sea state: {loc["sea_state"]}. Departing windows are '
               f'{loc["window_s"]:.0f}-s spans whose mean force residual is at least '
               f'{loc["window_flag"]:g} standard errors from zero and above the force floor.', '']
@@ -330,9 +359,14 @@ def _name_section(result: dict) -> list[str]:
                   '"Cannot be told apart": another candidate explains at least '
                   f'{100 * settings["collinearity"]["alias_share"]:.0f} % of what the term '
                   'explains (share in brackets); these recordings do not decide between '
-                  'them.', '']
+                  'them. The 95 % interval holds the value another run would ask for: the '
+                  'bootstrap interval ("of which noise") widened by how much the runs '
+                  'disagree beyond their noise (I² near 1: the model is misspecified and '
+                  'the coefficient stands in for something else).', '']
     else:
         lines += [result['summary'], '']
+    if result.get('kept_out'):
+        lines += _kept_out_table(result['kept_out'])
     pruned = [c for c in result['candidates'] if c['status'].startswith('pruned')]
     if pruned:
         lines += ['Selected but dropped:', '']
@@ -352,24 +386,28 @@ def _model_section(result: dict) -> list[str]:
                                             ''])
     return lines + [
         f'- `{aug["physics"]}`: nominal terms plus the extra terms (load with '
-        '`vessel_physics.augmented.load_physics`);',
-        f'- `{aug["vessel"]}`: the vessel parameters with the corrections folded in (a plain '
-        'vessel file for the simulator and `build_first_principles`);',
-        f'- `{aug["simulation"]}`: a simulator scenario using both.', '']
+        '`vessel_physics.physics_file.load_physics`; a hybrid takes it as '
+        '`model.physical.physics`);',
+        f'- `{aug["parameters"]}`: the parameters with the corrections folded in;',
+        f'- `{aug["simulation"]}`: a simulator scenario with it '
+        '(`offline/simulate.py --config`).', '']
 
 
-def _show_section(metrics: dict) -> list[str]:
+def _show_section(metrics: dict, result: dict) -> list[str]:
     lines = ['## 4. Before and after, on held-out recordings', '']
+    states, units, _, _ = _vectors(result)
     if (metrics.get('one_step_rmse') or {}).get('augmented'):
-        return lines + _metrics_tables(metrics) + ['', '![before/after](before_after.png)', '']
+        return lines + _metrics_tables(metrics, states, units) + [
+            '', '![before/after](before_after.png)', '']
     if metrics.get('one_step_rmse'):
         return lines + ['Nothing was added, so there is no "after"; the nominal physics on '
-                        'the held-out runs:', ''] + _metrics_tables(metrics) + ['']
+                        'the held-out runs:', ''] + _metrics_tables(metrics, states, units) + [
+            '']
     return lines + ['Not evaluated (no held-out recordings).', '']
 
 
 def _markdown(result: dict, loc: dict, metrics: dict) -> list[str]:
-    return (_header(result) + _locate_section(loc) + _name_section(result)
-            + _model_section(result) + _show_section(metrics)
+    return (_header(result) + _locate_section(loc, result) + _name_section(result)
+            + _model_section(result) + _show_section(metrics, result)
             + ['Every number above is in `findings.json` (schema in docs/diagnosis.md).'])
 

@@ -23,7 +23,6 @@ from collections.abc import Sequence
 import numpy as np
 
 from vessel_description import Vessel
-from vessel_diagnosis.design import STATES
 from vessel_diagnosis.recordings import Run
 
 GRAVITY = 9.81   # m/s^2
@@ -33,13 +32,9 @@ class ScaleError(ValueError):
     """The recordings do not fit the vessel file's scale; the message is one line."""
 
 
-def scale_figures(runs: Sequence[Run], vessel: Vessel, cfg,
-                  states: Sequence[str] = STATES) -> dict:
-    """
-    Return the recordings' Froude number, turning rate and limit excesses (findings).
-
-    ``states`` names the columns of the runs' ``z`` (u, v and r among them).
-    """
+def scale_figures(runs: Sequence[Run], vessel: Vessel, cfg) -> dict:
+    """Return the recordings' Froude number, turning rate and limit excesses (findings)."""
+    states = vessel.state_names
     z = np.concatenate([r.z for r in runs])
     length = vessel.length_m
     speed = np.hypot(z[:, states.index('u')], z[:, states.index('v')])
@@ -81,10 +76,9 @@ def scale_problems(figures: dict, vessel: Vessel, cfg) -> list[str]:
     return out
 
 
-def check_scale(runs: Sequence[Run], vessel: Vessel, cfg,
-                states: Sequence[str] = STATES) -> dict:
+def check_scale(runs: Sequence[Run], vessel: Vessel, cfg) -> dict:
     """Return the scale figures; raise ScaleError (one line) when they are implausible."""
-    figures = scale_figures(runs, vessel, cfg, states)
+    figures = scale_figures(runs, vessel, cfg)
     problems = scale_problems(figures, vessel, cfg)
     if problems:
         raise ScaleError(f'the recordings do not fit the scale of vessel {vessel.name!r} '

@@ -1,8 +1,12 @@
 """
-Settings of the diagnosis: the packaged defaults (config/diagnosis.yaml) and overrides.
+Settings of the diagnosis: the packaged defaults, a family's, and overrides.
 
-``load_settings(path)`` merges a user's YAML over the defaults; an unknown section or key
-raises ``SettingsError`` with one line (and a did-you-mean), a wrong type too.
+``load_settings(path, family=NAME)`` merges, in this order, config/diagnosis.yaml (the
+defaults, written for the patrol boat's size and time scales), the family's
+config/families/NAME.yaml (time scales and force floors of the family's shipped vessels:
+the MMG model tanker, the Otter), a user's YAML and ``overrides``; an unknown section or
+key raises ``SettingsError`` with one line (and a did-you-mean), a wrong type too. A
+setting that is null takes the vessel's own value (the evaluation's window and horizon).
 """
 
 from __future__ import annotations
@@ -77,6 +81,7 @@ class Validation:
     folds: int
     min_improvement: float
     max_parameter_change: float
+    kept_out_share: float
 
 
 @dataclass(frozen=True)
@@ -114,9 +119,9 @@ class Evaluation:
     holdout_fraction: float
     holdout_seed: int
     calibration_s: float
-    window: int
-    horizon: int
-    stride: int
+    window_s: float | None
+    horizon_s: float | None
+    stride_s: float
     min_trajectory_gain: float
     max_state_loss: float
 
@@ -140,6 +145,10 @@ class Settings:
         """Return the settings as a plain mapping."""
         return asdict(self)
 
+    def samples(self, seconds: float, dt: float) -> int:
+        """Return a span of seconds in samples of period ``dt`` (at least one)."""
+        return max(1, int(round(seconds / dt)))
+
 
 def config_dir() -> Path:
     """Directory of the packaged YAML files (source tree or colcon install)."""
@@ -162,32 +171,48 @@ def _section(cls, values: Mapping, defaults: Mapping, where: str):
     out = {}
     for f in fields(cls):
         value = values.get(f.name, defaults[f.name])
-        default = defaults[f.name]
-        if isinstance(default, list):
-            if not isinstance(value, list) or len(value) != len(default):
-                raise SettingsError(f'{where}.{f.name}: expected a list of {len(default)} '
-                                    f'numbers, got {value!r}')
-            value = tuple(float(v) for v in value)
-        elif isinstance(default, bool) or not isinstance(value, (int, float)) or isinstance(
-                value, bool):
+        kind = str(f.type)
+        if value is None and 'None' in kind:
+            out[f.name] = None
+        elif kind.startswith('tuple'):
+            if not isinstance(value, list) or not value or not all(
+                    isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+                raise SettingsError(f'{where}.{f.name}: expected a list of numbers, got '
+                                    f'{value!r}')
+            out[f.name] = tuple(float(v) for v in value)
+        elif isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SettingsError(f'{where}.{f.name}: expected a number, got {value!r}')
-        elif isinstance(default, int):
+        elif kind == 'int':
             if float(value) != int(value):
                 raise SettingsError(f'{where}.{f.name}: expected an integer, got {value!r}')
-            value = int(value)
+            out[f.name] = int(value)
         else:
-            value = float(value)
-        out[f.name] = value
+            out[f.name] = float(value)
     return cls(**out)
 
 
-def load_settings(path: str | Path | None = None, overrides: Mapping | None = None) -> Settings:
-    """Return the defaults merged with the YAML file ``path`` and then ``overrides``."""
+def family_settings_path(family: str) -> Path:
+    """Path of a family's packaged settings (config/families/NAME.yaml)."""
+    return config_dir() / 'families' / f'{family}.yaml'
+
+
+def load_settings(path: str | Path | None = None, overrides: Mapping | None = None,
+                  family: str | None = None) -> Settings:
+    """Return the defaults, the family's, the YAML file ``path`` and ``overrides``, merged."""
     defaults = _read(config_dir() / 'diagnosis.yaml')
-    user = _read(Path(path)) if path else {}
-    for key, value in (overrides or {}).items():
-        user.setdefault(key, {})
-        user[key] = {**user[key], **value}
+    user: dict = {}
+    layers = []
+    if family is not None and family_settings_path(family).is_file():
+        layers.append(_read(family_settings_path(family)))
+    layers += [_read(Path(path)) if path else {}, dict(overrides or {})]
+    for layer in layers:
+        for key, value in layer.items():
+            if key not in defaults:
+                user[key] = value    # refused below with a did-you-mean
+                continue
+            if not isinstance(value, Mapping):
+                raise SettingsError(f'{path or "settings"}: {key}: expected a mapping')
+            user[key] = {**user.get(key, {}), **value}
     sections = {f.name: f.type for f in fields(Settings)}
     for key in user:
         if key not in sections:

@@ -27,12 +27,8 @@ NOMINAL, AUGMENTED, LSTM = 'hybrid on nominal physics', 'hybrid on augmented phy
 def augmented_physics_file(report_dir: Path) -> Path | None:
     """Return the augmented physics file a diagnosis wrote into ``report_dir``, if any."""
     findings = json.loads((Path(report_dir) / 'findings.json').read_text())
-    written = findings.get('augmented_physics')           # the patrol family's pipeline
-    if written:
-        return Path(report_dir) / written['physics']
-    if findings.get('augmented_written'):                 # the MMG family's
-        return Path(report_dir) / 'augmented_mmg.yaml'
-    return None
+    written = findings.get('augmented_physics')    # every family: the files written, or None
+    return Path(report_dir) / written['physics'] if written else None
 
 
 def diagnose_fold(dataset: Dataset, fold: Fold, physics: str | None, out: Path,

@@ -1,6 +1,9 @@
 """
-ROS-free 4-DOF patrol-vessel physics.
+Vessel physics without ROS: families of equations of motion, and their simulator.
 
-Named force terms, environment (wind, waves, current), a human-like operator and a
-vectorized simulator; shared by the simulator, the models and the diagnosis tool.
+A family (``family.Family``) is one folder: ``patrol/`` (the 4-DOF patrol boat),
+``mmg/`` (the MMG standard model of single-screw ships), ``fossen/`` (the Fossen matrix
+model of small craft). ``physics_file.load_physics`` reads any family's file into a
+``family.Physics``, which the simulator (``simulation/``), the hybrid models and the
+diagnosis use. Shared maths stays here: frames, the integrator, the Array API helpers.
 """

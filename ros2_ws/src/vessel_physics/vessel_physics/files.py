@@ -1,19 +1,49 @@
-"""Reading parameter and configuration files: YAML and numeric fields, one-line errors."""
+"""Finding and checking parameter files: where they are, their numeric fields, one-line errors."""
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 import math
+import os
 from pathlib import Path
 from typing import Any
 
-from vessel_description import resources
+from vessel_description.resources import data_dir, read_yaml
 from vessel_physics.errors import ConfigError, did_you_mean
 
 
-def read_yaml(path: str | Path, what: str) -> Any:
-    """Return the YAML document of ``path``; ConfigError names the file and the reason."""
-    return resources.read_yaml(path, ConfigError, what)
+def config_dir() -> Path:
+    """Directory of the packaged physics and simulation files (source tree or install)."""
+    return data_dir('vessel_physics', __file__, 'config')
+
+
+def find_file(name: str | os.PathLike, beside: Iterable[Path | None] = (),
+              what: str = 'physics file') -> Path:
+    """
+    Return the file ``name`` names: a path, else beside one of ``beside``, else packaged.
+
+    A name without a suffix gets ``.yaml``. Relative names are looked up in the folders
+    ``beside`` (e.g. the folder of the vessel file or physics file that names it), then
+    the working directory, then this package's config folder; the error lists them all.
+    """
+    path = Path(name)
+    if not path.suffix:
+        path = path.with_suffix('.yaml')
+    if path.is_absolute():
+        if path.is_file():
+            return path
+        raise ConfigError(f'{what} {str(path)!r}: no such file')
+    folders = [Path(b) for b in beside if b is not None] + [Path('.'), config_dir()]
+    for folder in folders:
+        if (folder / path).is_file():
+            return folder / path
+    raise ConfigError(f'no {what} {str(path)!r} (looked in '
+                      f'{", ".join(str(f) for f in dict.fromkeys(folders))})')
+
+
+def read_document(path: str | os.PathLike, what: str) -> Any:
+    """Return a YAML file's document; ConfigError (one line) names the file and the reason."""
+    return read_yaml(path, ConfigError, what)
 
 
 def numeric_fields(data: Any, known: Iterable[str], numbers: Iterable[str], source: str,
@@ -57,3 +87,12 @@ def check_ranges(params: Any, finite: Iterable[str], positive: Iterable[str] = (
         if not 0 <= getattr(params, key) < 1:
             raise ConfigError(f'{source}: {key}: must be in [0, 1), got '
                               f'{getattr(params, key)!r}')
+
+
+def display_name(path: str | os.PathLike) -> str:
+    """Name a file for a report: packaged ones by package (vessel_physics/config/...)."""
+    path = Path(path)
+    try:
+        return f'vessel_physics/config/{path.resolve().relative_to(config_dir().resolve())}'
+    except ValueError:
+        return str(path)

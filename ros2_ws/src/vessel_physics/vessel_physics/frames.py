@@ -38,6 +38,17 @@ def heading_enu_to_ned(yaw):
     return HALF_PI - yaw
 
 
+def ned_to_body(north, east, psi):
+    """
+    Return a horizontal NED vector (north, east) in the levelled body frame at ``psi``.
+
+    (forward, starboard) at heading ``psi`` (rad): the one rotation of earth-frame
+    velocities (currents, tracked velocities) into the body.
+    """
+    cos_psi, sin_psi = np.cos(psi), np.sin(psi)
+    return north * cos_psi + east * sin_psi, -north * sin_psi + east * cos_psi
+
+
 def body_frd_to_flu(x, y, z=0.0):
     """Return a body vector (velocity or rate) from FRD to FLU: (x, -y, -z)."""
     return x, -y, -z

@@ -44,6 +44,22 @@ def held_period(derivative: Callable, z, c, period: float, substeps: int, repeat
     return z
 
 
+def free_run(derivative: Callable, z0, controls, period: float, substeps: int = 1):
+    """
+    Integrate ``z' = derivative(z, c)`` from ``z0`` (..., n) under ``controls`` (..., T, m).
+
+    Each control is held for one sample ``period`` (s) of ``substeps`` RK4 steps. Returns
+    the states (..., T + 1, n) at the T + 1 sample instants.
+    """
+    xp = namespace(z0, controls)
+    z = z0
+    out = [z]
+    for k in range(controls.shape[-2]):
+        z = held_period(derivative, z, controls[..., k, :], period, substeps)
+        out.append(z)
+    return xp.stack(out, axis=-2)
+
+
 def kinematics(u, v, r, phi, psi):
     """Return (x', y', psi') in NED (m/s, m/s, rad/s) for FRD u, v (m/s), r (rad/s), phi, psi."""
     xp = namespace(u, v, r, phi, psi)

@@ -12,6 +12,7 @@ messages deserialized from bags alike. Every frame change goes through
 
 from __future__ import annotations
 
+import importlib
 import math
 
 from builtin_interfaces.msg import Time
@@ -19,6 +20,7 @@ from geometry_msgs.msg import Vector3Stamped
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import JointState
 
+from vessel_datasets.topic_map import TopicMapError
 from vessel_physics import frames
 
 ODOM_TOPIC = 'odom'
@@ -140,3 +142,22 @@ def measurement_from_wind(msg) -> dict[str, float]:
     speed, dir_cos, dir_sin = frames.wind_from_flu(msg.vector.x, msg.vector.y)
     return {'wind_speed': float(speed), 'wind_dir_cos': float(dir_cos),
             'wind_dir_sin': float(dir_sin)}
+
+
+def message_types(topic_map) -> dict:
+    """Message class of every topic of a topic map, from the ``type`` its entries name."""
+    out = {}
+    for topic in topic_map.topics:
+        names = {e.msgtype for e in topic_map.entries if e.topic == topic and e.msgtype}
+        if len(names) != 1:
+            raise TopicMapError(f'vessel {topic_map.vessel.name!r}: topic {topic} needs one '
+                                f'type (type: pkg/msg/Name on one of its entries) to be '
+                                f'subscribed or published; got {sorted(names) or "none"}')
+        package, _, name = names.pop().split('/')
+        try:
+            out[topic] = getattr(importlib.import_module(f'{package}.msg'), name)
+        except (ImportError, AttributeError):
+            raise TopicMapError(f'topic {topic}: message type {package}/msg/{name} is not '
+                                f'installed (build and source its interface package)') \
+                from None
+    return out

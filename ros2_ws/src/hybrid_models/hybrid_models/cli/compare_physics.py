@@ -37,9 +37,9 @@ from hybrid_models.studies.compare_physics import (
 )
 from hybrid_models.training.config import config_dir
 from hybrid_models.training.train import MODEL_FILE
-from hybrid_models.vehicle import VehicleSpec
-from vessel_physics.augmented import load_physics
+from vessel_description import Vessel
 from vessel_physics.errors import ConfigError
+from vessel_physics.physics_file import load_physics
 
 DEFAULT_CONFIG = 'hybrid_2p.yaml'  # in the package's config/
 DEFAULT_THRESHOLDS = [0.005, 0.01, 0.02, 0.03, 0.05, 0.075, 0.1, 0.15, 0.2, 0.3, 0.5]
@@ -113,7 +113,7 @@ def main(argv=None) -> int:
     except CheckpointError as exc:
         print(f'compare_physics: error: {exc}', file=sys.stderr)
         return 1
-    spec = VehicleSpec.from_dict(cfg['vehicle'])
+    spec = Vessel.from_dict(cfg['vehicle'])
     args.window, args.horizon, args.stride = evaluation_protocol(spec, args.window,
                                                                  args.horizon, args.stride)
     evaluated = evaluate_all(args, spec)

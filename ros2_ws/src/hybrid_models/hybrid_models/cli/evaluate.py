@@ -43,8 +43,8 @@ from hybrid_models.evaluation import (
 from hybrid_models.nets import HybridModel
 from hybrid_models.selection import harms
 from hybrid_models.training.train import MODEL_FILE
-from hybrid_models.vehicle import VesselError
 from vessel_datasets.format import DatasetError
+from vessel_description import VesselError
 
 
 def _checkpoint_path(arg: str) -> Path:

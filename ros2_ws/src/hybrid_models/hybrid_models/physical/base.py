@@ -6,7 +6,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 from vessel_physics.arrays import constant, namespace
 
 
@@ -24,7 +24,7 @@ class PhysicalModel:
 
     kind = 'abstract'
 
-    def __init__(self, spec: VehicleSpec):
+    def __init__(self, spec: Vessel):
         self.spec = spec
         self._arrays: dict[str, np.ndarray] = {}
 

@@ -8,8 +8,9 @@ controls or adding features cannot shift them (a defect of the authors' library)
 - ``lin``: controls and states (Baier et al. eq. "Lin": z' = Q c + P z + b).
 - ``qua``: ``lin`` plus the square of every control and state (the quadcopter "Qua").
 - ``hyd``: ``lin`` plus the nonlinear hull terms of Blanke & Christensen (1993) as
-  used for the patrol vessel by Perez, Ross & Fossen (2006), ``BLANKE_ORDER``; their
-  formulas and names are the physics' (``vessel_physics.terms.HULL_TERMS``).
+  used for the patrol vessel by Perez, Ross & Fossen (2006): the ``feature`` terms of the
+  patrol family's registry (``vessel_physics.patrol.family``), in its ``FEATURE_ORDER``,
+  each with the generalized forces it enters.
 """
 
 from __future__ import annotations
@@ -18,29 +19,17 @@ from collections.abc import Callable
 
 import numpy as np
 
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 from vessel_physics.arrays import namespace
-from vessel_physics.terms import HULL_TERMS, hull_terms
+from vessel_physics.patrol.family import FEATURE_ORDER, TERMS
 
 Term = Callable[[dict], object]   # state values by name -> one feature (an array)
 
-# The nonlinear hull-force terms of the 4-DOF patrol-vessel model, in the order of the
-# regression's columns (a checkpoint's weights follow it); formulas and spelling are
-# the physics' own (``vessel_physics.terms.HULL_TERMS``).
-BLANKE_ORDER = ('|u|u', 'vr', 'rr', 'pr', '|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|',
-                'phi|ur|', 'phiuu', '|u|p', 'p|p|', 'phi^3', '|u|r', 'r|r|', 'phiu|r|',
-                'phiu|u|')
-BLANKE_TERMS: dict[str, Term] = {name: HULL_TERMS[name] for name in BLANKE_ORDER}
-
-# Which terms appear in which generalized force (same sources). X holds the hull drag
-# and the Coriolis/centripetal products m(v r + xG r^2 - zG p r).
+# The hull features in the order of the regression's columns (a checkpoint's weights
+# follow it), and which generalized forces each enters: the family's registry.
+BLANKE_TERMS: dict[str, Term] = {name: TERMS[name].fn for name in FEATURE_ORDER}
 DOF_TERMS: dict[str, tuple[str, ...]] = {
-    'X': ('|u|u', 'vr', 'rr', 'pr'),
-    'Y': ('|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phiuu'),
-    'K': ('|u|v', 'ur', 'v|v|', 'v|r|', 'r|v|', 'phi|uv|', 'phi|ur|', 'phiuu',
-          '|u|p', 'p|p|', 'phi^3'),
-    'N': ('|u|v', 'ur', 'r|v|', 'phi|uv|', '|u|r', 'r|r|', 'phiu|r|', 'phiu|u|'),
-}
+    dof: tuple(n for n in FEATURE_ORDER if dof in TERMS[n].dofs) for dof in 'XYKN'}
 
 # Forces acting on each state over one sample period. 'diagonal' reads Blanke's
 # equations literally (one force per acceleration, phi' = p has none). 'coupled'
@@ -69,7 +58,7 @@ def term_states(term: Term) -> frozenset[str]:
 class FeatureMap:
     """Maps (z, c) to named features (B, F); ``masks[state]`` lists the features it uses."""
 
-    def __init__(self, spec: VehicleSpec, kind: str = 'lin', masks: str = 'coupled'):
+    def __init__(self, spec: Vessel, kind: str = 'lin', masks: str = 'coupled'):
         if kind not in ('lin', 'qua', 'hyd'):
             raise ValueError(f"unknown feature map {kind!r}; use 'lin', 'qua' or 'hyd'")
         self.spec, self.kind, self.mask_mode = spec, kind, masks
@@ -113,5 +102,5 @@ class FeatureMap:
         if self.kind == 'qua':
             return xp.concat([linear, linear * linear], axis=-1)
         s = {name: z[..., i] for i, name in enumerate(self.spec.state_names)}
-        blanke = xp.stack(hull_terms(self.terms, s), axis=-1)
+        blanke = xp.stack([BLANKE_TERMS[t](s) for t in self.terms], axis=-1)
         return xp.concat([linear, blanke], axis=-1)

@@ -1,108 +1,136 @@
 """
-First-principles models Min, Pro and a physics file, built from ``vessel_physics`` terms.
+First-principles physical models: a vessel's physics of any family (``vessel_physics``).
 
-Each integrates M [u, v, p, r]' = sum of named terms (z, c), phi' = p over one sample
-period with classical RK4 sub-steps (``vessel_physics.integrator.rk4_step``), the
-control held constant (zero-order hold). The roll angle integrates the roll RATE p;
-the authors' library used the roll acceleration there, and stepped explicit Euler
-at dt = 1 s.
+Each integrates the family's equation of motion ``Physics.derivative`` (M nu' = tau and
+its kinematics, in the vessel file's vectors) over one sample period with classical RK4
+sub-steps, the control held constant (zero-order hold). The roll angle of the patrol
+family integrates the roll RATE p; the authors' library used the roll acceleration
+there, and stepped explicit Euler at dt = 1 s.
 
-- Min (Baier et al.): rigid-body Coriolis and linearized restoring -G eta with the mass
-  matrix including added mass; no damping, no control forces.
-- Pro: Min plus the twin rudder-propeller thrust.
-- Physics: the terms and discovered extra terms of a physics file
-  (``vessel_physics.augmented``), e.g. the nominal physics or the augmented physics that
-  ``offline/diagnose.py`` writes; the checkpoint keeps the whole file inline.
+- ``physics``: the physics file a config names (``model.physical.physics``: any family's
+  physics or parameter file, e.g. the augmented physics ``offline/diagnose.py`` writes);
+- a named subset of the family's terms: the paper's Min and Pro of the patrol family
+  (``min``: rigid-body Coriolis and linearized restoring; ``pro``: Min plus the twin
+  rudder-propellers), and ``mmg`` (the MMG family, optionally ``terms``), on the physics
+  the vessel file names (``physics:``) or a given parameter file (``params``).
 
-The terms are written against the Array API, so this module holds no physics of its
-own: it picks terms, sub-steps and parameters (default: those the vessel file names
-under ``physics``; a vessel without them is refused).
+The checkpoint keeps the whole physics inline, so a model never needs the file again;
+checkpoints written before the families stored the parameter values under ``vessel``
+(Min, Pro) or ``mmg``, and are read as such. This module holds no physics of its own.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict
+from collections.abc import Mapping, Sequence
 
 from hybrid_models.physical.integrated import IntegratedModel
-from hybrid_models.vehicle import VehicleSpec, load_vessel
-from vessel_physics.augmented import Physics, load_physics, physics_from_dict
-from vessel_physics.params import load_named_vessel, params_from_dict
-from vessel_physics.terms import MIN_TERMS, PRO_TERMS
+from vessel_description import Vessel
+from vessel_physics.errors import ConfigError
+from vessel_physics.families import FAMILIES
+from vessel_physics.family import Physics
+from vessel_physics.physics_file import load_physics, physics_from_dict, physics_to_dict
 
-TERM_SETS = {'min': MIN_TERMS, 'pro': PRO_TERMS}
 PHYSICS_FILE_KIND = 'physics'
-# The vessel file whose vectors the 4-DOF terms of vessel_physics are written for.
-PHYSICS_FAMILY_VESSEL = 'patrol_boat'
+FAMILY_KINDS = {'mmg': 'mmg'}   # kinds that name a family: the model is that family's
+HINT = 'use a regression physics (lin, hyd, qua) or a physics file of a family that fits'
+
 
 
 class FirstPrinciplesModel(IntegratedModel):
-    """Named force terms, the mass matrix and RK4 sub-steps over one sample period."""
+    """A family's equation of motion and RK4 sub-steps over one sample period."""
 
-    def __init__(self, spec: VehicleSpec, kind: str, physics: Physics,
-                 params_source: str, substeps: int = 4):
+    def __init__(self, spec: Vessel, kind: str, physics: Physics, source: str,
+                 substeps: int = 4):
         super().__init__(spec, substeps)
-        family = load_vessel(PHYSICS_FAMILY_VESSEL)
-        if (spec.state_names, spec.control_names) != (family.state_names,
-                                                      family.control_names):
-            raise ValueError(f'{kind}: the 4-DOF vessel terms take z = {family.state_names} '
-                             f'and c = {family.control_names}; vessel {spec.name!r} has '
-                             f'{spec.state_names} and {spec.control_names}: use a '
-                             f'regression physics (lin, hyd, qua)')
-        self.kind, self.physics = kind, physics
-        self.params, self.params_source = physics.params, params_source
+        try:
+            self.physics = physics.for_vessel(spec)
+        except ConfigError as exc:
+            raise ValueError(f'{kind}: {exc}; {HINT}') from None
+        self.kind, self.params_source = kind, source
+        self.params = physics.params
 
     def derivative(self, z, c):
-        """Z' = [M^-1 tau(z, c), p] (FRD; m/s^2, rad/s^2, rad/s): ``Physics.derivative``."""
+        """Return z' (the family's ``Physics.derivative``) in the vessel's vectors."""
         return self.physics.derivative(z, c)
 
     @property
     def params_yaml(self) -> dict:
-        """Return the parameter values used (stored in checkpoints)."""
-        return asdict(self.params)
+        """Return the parameter values used (for the training report)."""
+        return self.physics.family.parameter_values(self.params)
 
     def describe(self) -> dict:
-        """Return the construction arguments, including every parameter value."""
-        if self.kind == PHYSICS_FILE_KIND:
-            return {'kind': self.kind, 'physics_source': self.params_source,
-                    'substeps': self.substeps,
-                    'physics': self.physics.to_dict(inline_vessel=True)}
-        return {'kind': self.kind, 'params': self.params_source, 'substeps': self.substeps,
-                'vessel': asdict(self.params)}
+        """Return the construction arguments, the whole physics inline."""
+        return {'kind': self.kind, 'physics_source': self.params_source,
+                'substeps': self.substeps,
+                'physics': physics_to_dict(self.physics, inline=True)}
 
 
-def build_first_principles(kind: str, spec: VehicleSpec, params: str | None = None,
-                           substeps: int = 4, vessel: dict | None = None,
-                           physics: str | dict | None = None,
-                           physics_source: str | None = None) -> FirstPrinciplesModel:
+def _stored(cfg: Mapping) -> Physics | None:
+    """Return the physics a checkpoint stored inline: today's mapping, or an older form."""
+    source = str(cfg.get('physics_source') or cfg.get('params') or '<inline physics>')
+    if isinstance(cfg.get('physics'), Mapping):
+        return physics_from_dict(cfg['physics'], source=source)
+    for key, family in (('vessel', 'patrol'), ('mmg', 'mmg')):
+        if cfg.get(key):     # parameter values as checkpoints stored them before families
+            f = FAMILIES[family]
+            return Physics(f, f.read_parameters(dict(cfg[key]), source), f.model_terms,
+                           source=source)
+    return None
+
+
+def _subset(kind: str, physics: Physics, terms: Sequence[str] | None) -> Physics:
+    """Return the physics restricted to a named set of its family's terms."""
+    family = physics.family
+    if kind in FAMILY_KINDS:
+        if family.name != FAMILY_KINDS[kind]:
+            raise ValueError(f'{kind}: the physics ({physics.source}) is of the '
+                             f'{family.title}, not the {kind} family; use kind physics')
+        chosen = tuple(terms) if terms else family.model_terms
+        forces = [n for n, t in family.terms.items() if t.kind == 'force']
+        if not chosen or any(t not in forces for t in chosen):
+            raise ValueError(f'{kind}: terms must be a non-empty subset of {forces}, got '
+                             f'{list(chosen)}')
+        return physics.replace(terms=chosen)
+    if kind not in family.term_sets:
+        raise ValueError(f'{kind}: the {family.title} has no term set {kind!r} (it has '
+                         f'{sorted(family.term_sets) or "none"}); use kind physics')
+    return physics.replace(terms=family.term_sets[kind])
+
+
+def build_first_principles(kind: str, spec: Vessel, cfg: Mapping,
+                           substeps: int = 4) -> FirstPrinciplesModel:
     """
-    Min or Pro, or the physics of a physics file.
+    Build the model of ``kind`` for a vessel: 'physics' (a file), or a family's term set.
 
-    Min and Pro take their parameters from ``vessel`` values, a YAML name/path
-    (``params``), or the hull parameters the vessel file names (``physics``). Kind
-    'physics' needs ``physics``: a physics file's path, or its mapping (as ``describe``
-    stores it, with ``physics_source`` naming where it came from).
+    ``cfg`` is the physical-model config (``build_physical``): ``physics`` (a path or a
+    stored mapping), ``params`` (a parameter file), ``terms`` (kind 'mmg'), or the
+    values an older checkpoint stored.
     """
-    if kind == PHYSICS_FILE_KIND:
-        if physics is None:
-            raise ValueError("physical model 'physics' needs a physics file: set "
-                             "model.physical.physics to its path (e.g. the "
-                             'augmented_physics.yaml that offline/diagnose.py writes)')
-        if isinstance(physics, dict):
-            source = physics_source or '<inline physics>'
-            loaded = physics_from_dict(physics, source=source)
+    stored = _stored(cfg)
+    try:
+        if kind == PHYSICS_FILE_KIND:
+            if stored is None and cfg.get('physics') is None:
+                raise ValueError("physical model 'physics' needs a physics file: set "
+                                 "model.physical.physics to its path (e.g. the "
+                                 'augmented_physics.yaml that offline/diagnose.py writes)')
+            physics = stored if stored is not None else load_physics(cfg['physics'], spec)
+            source = stored.source if stored is not None else str(cfg['physics'])
+            # Per-run environment (e.g. each recording's current) does not carry to new runs.
+            return FirstPrinciplesModel(spec, kind, physics.replace(environment={}), source,
+                                        substeps)
+        if isinstance(cfg.get('physics'), Mapping):    # stored with its terms: as it was
+            return FirstPrinciplesModel(spec, kind, stored, stored.source, substeps)
+        if stored is not None:
+            physics, source = stored, stored.source
         else:
-            source, loaded = str(physics), load_physics(physics)
-        # Per-run environment (e.g. each recording's current) does not carry to new runs.
-        return FirstPrinciplesModel(spec, kind, loaded.replace(environment={}), source,
-                                    substeps)
-    if kind not in TERM_SETS:
-        raise ValueError(f'unknown first-principles model {kind!r}; use '
-                         f'{sorted(TERM_SETS) + [PHYSICS_FILE_KIND]}')
-    source = params or spec.physics
-    if source is None and not vessel:
-        raise ValueError(f'physical model {kind!r} needs hull parameters, and vessel '
-                         f'{spec.name!r} names none (key physics: in its vessel file); use a '
-                         f'regression physics (lin, hyd, qua) or give model.physical.params')
-    values = params_from_dict(vessel, source) if vessel else load_named_vessel(source)
-    return FirstPrinciplesModel(spec, kind, Physics(values, TERM_SETS[kind], source=source),
-                                source, substeps)
+            source = cfg.get('params') or spec.physics
+            if source is None:
+                raise ValueError(f'physical model {kind!r} needs physics, and vessel '
+                                 f'{spec.name!r} names none (key physics: in its vessel file); '
+                                 f'use a regression physics (lin, hyd, qua) or give '
+                                 f'model.physical.params')
+            physics = load_physics(source, spec)
+        physics = _subset(kind, physics, cfg.get('terms'))
+    except ConfigError as exc:
+        raise ValueError(f'{kind}: {exc}; {HINT}') from None
+    return FirstPrinciplesModel(spec, kind, physics, str(source), substeps)

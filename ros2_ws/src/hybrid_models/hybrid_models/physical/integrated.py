@@ -14,14 +14,14 @@ from abc import ABCMeta, abstractmethod
 from collections.abc import Mapping
 
 from hybrid_models.physical.base import PhysicalModel
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 from vessel_physics.integrator import held_period
 
 
 class IntegratedModel(PhysicalModel, metaclass=ABCMeta):
     """An equation of motion z' = f(z, c), integrated with ``substeps`` RK4 steps."""
 
-    def __init__(self, spec: VehicleSpec, substeps: int = 4):
+    def __init__(self, spec: Vessel, substeps: int = 4):
         super().__init__(spec)
         if substeps < 1:
             raise ValueError(f'substeps must be >= 1, got {substeps}')

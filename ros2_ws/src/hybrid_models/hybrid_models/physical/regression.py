@@ -8,7 +8,7 @@ import numpy as np
 
 from hybrid_models.physical.base import PhysicalModel
 from hybrid_models.physical.features import FeatureMap
-from hybrid_models.vehicle import VehicleSpec
+from vessel_description import Vessel
 
 
 def ridge_lstsq(x: np.ndarray, y: np.ndarray, ridge: float) -> tuple[np.ndarray, float]:
@@ -36,7 +36,7 @@ def ridge_lstsq(x: np.ndarray, y: np.ndarray, ridge: float) -> tuple[np.ndarray,
 class RegressionModel(PhysicalModel):
     """Linear-in-parameters model over a named feature map, one row per state."""
 
-    def __init__(self, spec: VehicleSpec, features: str = 'lin', ridge: float = 1e-8,
+    def __init__(self, spec: Vessel, features: str = 'lin', ridge: float = 1e-8,
                  masks: str = 'coupled'):
         super().__init__(spec)
         self.kind = features

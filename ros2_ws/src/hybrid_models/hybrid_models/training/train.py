@@ -42,13 +42,13 @@ from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.distributed import Group, join, leave
 from hybrid_models.training.loop import BEST, LAST, REFERENCE_EPOCH, LoopState, fit
 from hybrid_models.training.tasks import RecurrentTask
-from hybrid_models.vehicle import VehicleSpec, load_vessel
 from vessel_datasets.format import Dataset, read_dataset
+from vessel_description import Vessel, load_vessel
 
 MODEL_FILE = 'model.safetensors'
 
 
-def dataset_vessel(cfg: dict, ds: Dataset) -> VehicleSpec:
+def dataset_vessel(cfg: dict, ds: Dataset) -> Vessel:
     """
     Return the vessel of the dataset, or the config's vessel file when it names one.
 
@@ -63,7 +63,7 @@ def dataset_vessel(cfg: dict, ds: Dataset) -> VehicleSpec:
     return vessel
 
 
-def uses_mirror(setting, spec: VehicleSpec) -> bool:
+def uses_mirror(setting, spec: Vessel) -> bool:
     """
     Tell whether training adds the mirror images of the training runs.
 
@@ -79,7 +79,7 @@ def uses_mirror(setting, spec: VehicleSpec) -> bool:
     return setting
 
 
-def check_windows(cfg: dict, spec: VehicleSpec, ds: Dataset) -> None:
+def check_windows(cfg: dict, spec: Vessel, ds: Dataset) -> None:
     """Refuse, before any training, a split that cannot give a single forecast window."""
     t, e = cfg['training'], cfg['evaluation']
     needs = {'train': t['window'] + t['sequence_length'],
@@ -121,7 +121,7 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'a
         leave(group)
 
 
-def _train(cfg: dict, spec: VehicleSpec, ds: Dataset, out_dir: Path, resume: bool,
+def _train(cfg: dict, spec: Vessel, ds: Dataset, out_dir: Path, resume: bool,
            group: Group) -> dict:
     tcfg = cfg['training']
     torch.set_num_threads(int(tcfg['threads']))

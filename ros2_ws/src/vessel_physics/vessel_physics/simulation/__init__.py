@@ -1,0 +1,1 @@
+"""The simulator of any family's vessel: configuration, environment, operator, sensors."""

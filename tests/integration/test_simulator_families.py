@@ -1,0 +1,127 @@
+"""
+The simulator node for a vessel of each family, over real DDS, and the predictor on it.
+
+``ship_sim_node simulator -p vessel:=kvlcc2_hsva`` (the MMG family) and ``vessel:=otter``
+(the Fossen family) must publish the topics, types, fields and rate their vessel files'
+recording maps name, take commands in those fields, and feed a predictor started with
+the same vessel file and a model trained on that simulator's own data (offline
+simulate, then a smoke training of seconds): it must forecast with the vessel's names.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from .conftest import REPO, spin_until
+
+pytestmark = pytest.mark.ros
+
+START = 2000.0    # stamp of simulated t = 0
+SMOKE = REPO / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
+JOINTS = {'kvlcc2_hsva': ['propeller', 'rudder'],
+          'otter': ['propeller_port', 'propeller_stbd']}
+
+
+def start_simulator(launcher, vessel, *params):
+    args = ['--ros-args', '-p', f'vessel:={vessel}', '-p', f'start_time:={START}']
+    for p in params:
+        args += ['-p', p]
+    return launcher.start_node('ship_sim_node', 'simulator', *args, name=f'sim_{vessel}')
+
+
+@pytest.mark.parametrize('vessel', sorted(JOINTS))
+def test_publishes_the_vessel_files_topics_at_its_rate(vessel, launcher, ros_node):
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
+
+    from vessel_description import load_vessel
+    from vessel_ros_bridge.messages import seconds_from_stamp
+
+    odom, joints = [], []
+    ros_node.create_subscription(Odometry, '/vessel/odom', odom.append, 100)
+    ros_node.create_subscription(JointState, '/vessel/actuators', joints.append, 100)
+    sim = start_simulator(launcher, vessel, 'real_time_factor:=10.0')
+    assert spin_until(ros_node, lambda: len(odom) >= 30 and joints, 30), sim.output()
+    boat = load_vessel(vessel)
+    stamps = np.array([seconds_from_stamp(m.header.stamp) for m in odom]) - START
+    np.testing.assert_allclose(np.diff(stamps), boat.dt, atol=1e-6)
+    last = joints[-1]
+    assert list(last.name) == JOINTS[vessel]
+    # JointState arrays are empty or one value per name.
+    assert {len(a) for a in (last.position, last.velocity, last.effort)} <= {0, len(last.name)}
+    msg = odom[-1]
+    assert (msg.header.frame_id, msg.child_frame_id) == ('odom', 'base_link')
+    assert 0.5 < msg.twist.twist.linear.x < boat.limits['u'][1]
+    q = msg.pose.pose.orientation
+    assert math.isclose(q.x ** 2 + q.y ** 2 + q.z ** 2 + q.w ** 2, 1.0, rel_tol=1e-9)
+    assert 'wind' not in ' '.join(n for n, _ in ros_node.get_topic_names_and_types())
+    assert f'simulating {vessel}' in sim.output()
+
+
+def test_the_otter_obeys_commands_in_its_own_joint_names(launcher, ros_node):
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import JointState
+
+    odom = []
+    ros_node.create_subscription(Odometry, '/vessel/odom', odom.append, 100)
+    cmd = ros_node.create_publisher(JointState, '/vessel/cmd', 10)
+    start_simulator(launcher, 'otter', 'real_time_factor:=5.0')
+    assert spin_until(ros_node, lambda: odom, 20)
+    # Starboard thruster ahead, port astern: a turn to port (FLU yaw rate > 0).
+    command = JointState(name=JOINTS['otter'], velocity=[-60.0, 90.0])
+
+    def turning():
+        cmd.publish(command)
+        return odom and odom[-1].twist.twist.angular.z > 0.2
+
+    assert spin_until(ros_node, turning, 20), odom[-1].twist.twist
+
+
+# The Otter's case runs by default; the KVLCC2's (the same path, a slower training) is slow.
+@pytest.fixture(scope='module', params=[pytest.param('kvlcc2_hsva', marks=pytest.mark.slow),
+                                        'otter'])
+def trained(request, tmp_path_factory):
+    """Return (vessel, checkpoint) of a smoke hybrid trained on the simulator's data."""
+    from hybrid_models.training.config import load_config
+    from hybrid_models.training.train import train
+    from vessel_datasets import simulate
+    from vessel_description import load_vessel
+
+    vessel = request.param
+    root = tmp_path_factory.mktemp(vessel)
+    assert simulate.main(['--vessel', vessel, '--runs', '6', '--hours', str(120 / 3600),
+                          '--out', str(root / 'ds'), '--quiet']) == 0
+    cfg = load_config(SMOKE, [f'dataset={root / "ds"}', 'training.window=null',
+                              'training.validation={}', 'evaluation={}',
+                              'training.progress=false', 'model.physical.kind=physics',
+                              f'model.physical.physics={load_vessel(vessel).physics}',
+                              'model.physical.substeps=1'])
+    train(cfg, root / 'run')
+    return vessel, root / 'run' / 'model.safetensors'
+
+
+def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launcher,
+                                                                  ros_node):
+    from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_description import load_vessel
+
+    vessel, checkpoint = trained
+    boat = load_vessel(vessel)
+    forecasts = []
+    ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 10)
+    predictor = launcher.start_node('hybrid_predictor', 'predictor', '--ros-args',
+                                    '-p', f'model_path:={checkpoint}',
+                                    '-p', f'vessel:={vessel}', '-p', 'use_sim_time:=true')
+    assert spin_until(ros_node, lambda: 'compiled in' in predictor.output(), 90), \
+        predictor.output()
+    start_simulator(launcher, vessel, 'real_time_factor:=4.0', 'publish_clock:=true')
+    assert spin_until(ros_node, lambda: forecasts, 60), predictor.output()
+    msg = forecasts[-1]
+    assert msg.vessel == vessel
+    assert list(msg.state_names) == list(boat.state_names)
+    assert list(msg.control_names) == list(boat.control_names)
+    assert msg.horizon == boat.horizon
+    hybrid = np.reshape(msg.hybrid, (boat.horizon, boat.n_state))
+    assert np.isfinite(hybrid).all()
+    assert 0.3 < hybrid[0, 0] < boat.limits['u'][1]     # starts near the simulated surge
