@@ -17,6 +17,7 @@ run python offline/table_to_dataset.py "$REAL/kvlcc2_hsva/raw_data" --vessel kvl
 run python docs/results/real/analysis/kvlcc2_mmg.py "$WORK/kvlcc2_ds" "$OUT" > /dev/null
 # 3. The diagnosis, blind: identifies on the 11 other runs, judges on the 2 held out.
 run python offline/diagnose.py --recordings "$WORK/kvlcc2_ds" --out "$OUT/diagnosis" --quiet
+sed -i "s#$WORK/#\$WORK/#g" "$OUT"/diagnosis/*.{md,json,yaml}
 # 4. The whole workflow on the held-out split, five seeds: the diagnosis identifies on the
 #    training runs and judges on the validation run; the MMG hybrid on the nominal and on
 #    the augmented physics and the LSTM are trained, and all are compared on Z_20_10_P
