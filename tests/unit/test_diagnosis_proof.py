@@ -64,7 +64,10 @@ def test_control_reports_nothing_at_full_size(tmp_path):
     assert 'Nothing significant is missing' in (out / 'report.md').read_text()
 
 
-FAMILY_CASES = [(vessel, name) for vessel in FAMILY_RUNS for name in scenario_names(vessel)]
+# A proof needs one true physics: scenarios whose parameters differ from run to run
+# (run_spread) measure interval coverage instead (test_diagnosis_coverage.py).
+FAMILY_CASES = [(vessel, name) for vessel in FAMILY_RUNS for name in scenario_names(vessel)
+                if not load_scenario(name, vessel=vessel).run_spread]
 
 
 @pytest.mark.parametrize(('vessel', 'name'), FAMILY_CASES)
