@@ -216,6 +216,9 @@ def forecasts_in(graph, seconds: float) -> int:
     return len(graph.forecasts) - start
 
 
+# Slow: three 4 s counts; it also failed once in three full runs on an idle machine
+# (9 forecasts in 4 s at 0.2 s, 12 asked) and never alone: the cause is not found yet.
+@pytest.mark.slow
 def test_a_runtime_forecast_period_change_shows_in_the_publish_rate(fed):
     graph, _ = fed
     assert not set_parameter(graph, 'model_path', '/tmp/x.safetensors').successful

@@ -34,6 +34,7 @@ def said(case, text: str) -> bool:
     return any(text in m for m in case['error_messages'])
 
 
+@pytest.mark.slow   # two outages and their recoveries on /clock (about 45 s)
 def test_under_sim_time_a_paused_or_doubled_clock_is_error_and_recovers(tmp_path):
     result = outage(['pause', 'second-clock'], clock='sim', outage_s=6.0, watch_s=60.0,
                     log_dir=tmp_path)

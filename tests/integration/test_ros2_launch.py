@@ -85,6 +85,7 @@ def test_simulator_launch_moves_every_topic_and_frame_into_its_namespace(
     assert '/boat7/simulator' in nodes.stdout.split(), nodes.stdout + nodes.stderr
 
 
+@pytest.mark.slow   # a simulator and a launched predictor (about 20 s)
 def test_predictor_launch_with_arguments_follows_a_simulator_moved_by_ros2_run(
         launcher, ros_node, ros2):
     from hybrid_predictor_interfaces.msg import Forecast
@@ -112,6 +113,7 @@ def test_predictor_launch_with_arguments_follows_a_simulator_moved_by_ros2_run(
     assert threshold.split() == ['Double', 'value', 'is:', '0.1'], threshold
 
 
+@pytest.mark.slow   # the whole demo launch with the recorder (about 80 s)
 def test_demo_launch_answers_the_cli_and_records_its_namespace(
         launcher, ros_node, ros2, tmp_path):
     from hybrid_predictor_interfaces.msg import Forecast

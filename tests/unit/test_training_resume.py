@@ -81,14 +81,22 @@ def test_a_training_subprocess_ends_when_the_tool_that_started_it_is_killed(tmp_
     import sys
     import time
 
-    # A stand-in tool: starts a long child the way train_job does, then is killed.
+    # A stand-in tool starts a training the way train_job does, then is killed; the
+    # stand-in training makes the call the train program makes first, then waits.
+    training = ('from hybrid_models.training.jobs import die_with_parent\n'
+                'import time\n'
+                'die_with_parent()\n'
+                'print("ready", flush=True)\n'
+                'time.sleep(60)\n')
     tool = subprocess.Popen([sys.executable, '-c', (
-        'import subprocess, sys\n'
-        'from hybrid_models.training.jobs import die_with_parent\n'
-        'child = subprocess.Popen(["sleep", "60"], preexec_fn=die_with_parent)\n'
+        'import os, subprocess, sys\n'
+        'from hybrid_models.training.jobs import PARENT_ENV\n'
+        f'child = subprocess.Popen([sys.executable, "-c", {training!r}],\n'
+        '                         env={**os.environ, PARENT_ENV: str(os.getpid())})\n'
         'print(child.pid, flush=True)\n'
         'child.wait()\n')], stdout=subprocess.PIPE, text=True)
     child = int(tool.stdout.readline())
+    assert tool.stdout.readline().strip() == 'ready'   # its call is made: the tool dies
     tool.send_signal(signal.SIGKILL)
     tool.wait()
     deadline = time.monotonic() + 10

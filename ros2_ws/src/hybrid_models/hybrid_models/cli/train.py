@@ -23,10 +23,12 @@ import sys
 
 from hybrid_models.training import ConfigError, load_config, train
 from hybrid_models.training.distributed import DEVICES
+from hybrid_models.training.jobs import die_with_parent
 
 
 def main(argv=None) -> int:
     """Parse arguments, train, print the summary; return the exit code."""
+    die_with_parent()
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('config', type=Path, help='YAML training config')

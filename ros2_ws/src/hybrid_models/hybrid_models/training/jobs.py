@@ -7,6 +7,7 @@ summary; its output goes to ``out/train.log``. Tools run several at once in a th
 """
 
 import ctypes
+import os
 from pathlib import Path
 import signal
 import subprocess
@@ -18,19 +19,25 @@ from hybrid_models.training import MODEL_FILE
 
 # A process per training: its memory is returned when it ends, and a kill loses only it.
 TRAIN_MODULE = 'hybrid_models.cli.train'
-PR_SET_PDEATHSIG = 1   # prctl(2): the signal a child gets when the thread that made it dies
+PR_SET_PDEATHSIG = 1   # prctl(2): the signal a process gets when its parent dies
+PARENT_ENV = 'HYBRID_MODELS_TRAIN_PARENT'   # set by train_job: the tool's process id
 
 
 def die_with_parent() -> None:
     """
-    Make the calling (child) process receive SIGTERM when its parent dies (Linux).
+    End this training with the tool that started it, if one did (Linux).
 
     A tool stopped by a signal, or killed, must not leave trainings running on: they
     would compete for the cores and write into runs a restarted tool trains again. A
-    training stopped this way resumes from its last epoch. Used as ``preexec_fn``.
+    training stopped this way resumes from its last epoch. Called by the training
+    itself at start (a ``preexec_fn`` would run Python in a forked multi-threaded tool).
     """
-    if sys.platform.startswith('linux'):
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    parent = os.environ.get(PARENT_ENV)
+    if not parent or not sys.platform.startswith('linux'):
+        return
+    ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+    if os.getppid() != int(parent):   # the tool ended before the line above
+        os.kill(os.getpid(), signal.SIGTERM)
 
 
 def finished(run_dir: Path) -> bool:
@@ -53,7 +60,7 @@ def train_job(label: str, config: Path, overrides: list[str], out: Path) -> dict
     start = time.monotonic()
     with open(out / 'train.log', 'a') as log:
         rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT,
-                            preexec_fn=die_with_parent).returncode
+                            env={**os.environ, PARENT_ENV: str(os.getpid())}).returncode
     status = 'ok' if rc == 0 else f'failed (exit {rc}, see {out / "train.log"})'
     return {'label': label, 'status': status, 'dir': str(out),
             'seconds': round(time.monotonic() - start, 1)}
