@@ -25,18 +25,18 @@ import argparse
 import json
 from pathlib import Path
 import sys
-import time
 
 import torch
 
 from hybrid_models.checkpoint import CheckpointError
 from hybrid_models.cli.crossval import (
     add_plan_options,
-    min_val_samples,
+    folds_of,
     report_text,
     run_plan,
+    stopwatch,
 )
-from hybrid_models.studies.crossval import make_folds, write_results
+from hybrid_models.studies.crossval import write_results
 from vessel_datasets.format import DatasetError, read_dataset
 from vessel_diagnosis import cli as diagnose_cli
 from vessel_diagnosis.workflow import diagnose_fold, nominal_physics, plan
@@ -65,18 +65,12 @@ def parse_args(argv):
 def main(argv=None) -> int:
     """Diagnose each fold, train, compare, report; return the exit code."""
     args = parse_args(argv)
-    start = time.monotonic()
-
-    def say(message: str) -> None:
-        print(f'[{(time.monotonic() - start) / 60:5.1f} min] {message}', file=sys.stderr,
-              flush=True)
-
+    say = stopwatch()
     torch.set_num_threads(args.threads)
     try:
         dataset = read_dataset(args.dataset)
         nominal = nominal_physics(dataset, args.physics)
-        folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
-                           args.fold_by, min_val_samples(dataset.vessel, args))
+        folds = folds_of(dataset, args)
         diagnoses = {}
         for fold in folds:
             say(f'diagnosing fold {fold.index} ({len(fold.train)} training runs, judged on '

@@ -174,9 +174,9 @@ class Family(ABC):
         """Return the box hull (``simulation.waves.BoxHull``) its wave forces act on."""
         raise ConfigError(f'the {self.title} feels no waves')
 
+    @abstractmethod
     def probe(self) -> tuple[np.ndarray, np.ndarray]:
         """Return two probe states and controls in the family's vectors."""
-        raise NotImplementedError
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ trainings). Exit codes: 0 done, 1 a training or an input failed, 2 bad arguments
 """
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
 import sys
 import time
@@ -86,10 +87,25 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                             help=f"{what} of test forecasts (samples; default: the vessel's)")
 
 
-def min_val_samples(vessel, args) -> int:
-    """Return the samples a validating run needs: one forecast's window and horizon."""
-    window, horizon, _ = evaluation_protocol(vessel, args.window, args.horizon, 1)
-    return window + horizon
+def folds_of(dataset, args) -> list:
+    """
+    Write and return the folds the plan options (``add_plan_options``) ask for.
+
+    A validating run needs one forecast's window and horizon, the test forecasts' own.
+    """
+    window, horizon, _ = evaluation_protocol(dataset.vessel, args.window, args.horizon, 1)
+    return make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
+                      args.fold_by, window + horizon)
+
+
+def stopwatch() -> Callable[[str], None]:
+    """Return a function that prints a message on stderr after the minutes since now."""
+    start = time.monotonic()
+
+    def say(message: str) -> None:
+        print(f'[{(time.monotonic() - start) / 60:5.1f} min] {message}', file=sys.stderr,
+              flush=True)
+    return say
 
 
 def run_plan(args, models: list[ModelPlan], folds, say) -> dict | None:
@@ -128,18 +144,12 @@ def main(argv=None) -> int:
     labels = [label for label, _ in args.model]
     if len(set(labels)) != len(labels) or args.seeds < 1:
         parser.error(f'give distinct model labels and --seeds >= 1 (labels {labels})')
-    start = time.monotonic()
-
-    def say(message: str) -> None:
-        print(f'[{(time.monotonic() - start) / 60:5.1f} min] {message}', file=sys.stderr,
-              flush=True)
-
+    say = stopwatch()
     torch.set_num_threads(args.threads)
     try:
         dataset = read_dataset(args.dataset)
         spec = dataset.vessel
-        folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
-                           args.fold_by, min_val_samples(dataset.vessel, args))
+        folds = folds_of(dataset, args)
         models = [ModelPlan(label, Path(config).resolve(), args.set)
                   for label, config in args.model]
         result = run_plan(args, models, folds, say)
