@@ -22,7 +22,6 @@ codes: 0 done, 1 bad input or a failed training, 2 bad arguments.
 """
 
 import argparse
-import json
 from pathlib import Path
 import sys
 
@@ -32,11 +31,10 @@ from hybrid_models.checkpoint import CheckpointError
 from hybrid_models.cli.crossval import (
     add_plan_options,
     folds_of,
-    report_text,
     run_plan,
     stopwatch,
+    write_study,
 )
-from hybrid_models.studies.crossval import write_results
 from vessel_datasets.format import DatasetError, read_dataset
 from vessel_diagnosis import cli as diagnose_cli
 from vessel_diagnosis.workflow import diagnose_fold, nominal_physics, plan
@@ -95,7 +93,6 @@ def main(argv=None) -> int:
         return 1
     result['diagnoses'] = diagnoses
     result['nominal_physics'] = nominal
-    write_results(args.out, result, dataset.vessel)
     # The report sits in --out: the folds' own reports are named relative to it.
     found = [f"- fold {k}: {(d['summary'] or 'no summary').replace(f'{args.out}/', '')}"
              + ('' if d['augmented'] else ' (no augmented physics: the hybrid on augmented '
@@ -105,11 +102,8 @@ def main(argv=None) -> int:
              f'`{args.hybrid}`' + (f', LSTM config `{args.lstm}`' if args.lstm else '') + '.',
              '', 'What the diagnosis found on each fold (identified on its training runs, '
              'judged on its validation runs):', '', *found, '']
-    table = (args.out / 'table.md').read_text()
-    (args.out / 'report.md').write_text(report_text(
-        f'Diagnose, augment, retrain: {dataset.vessel.name}', result, table, intro))
-    (args.out / 'results.json').write_text(json.dumps(result, indent=2))
-    print(table)
+    print(write_study(args.out, result, dataset.vessel,
+                      f'Diagnose, augment, retrain: {dataset.vessel.name}', intro))
     return 0
 
 

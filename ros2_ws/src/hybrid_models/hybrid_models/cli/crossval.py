@@ -123,6 +123,14 @@ def run_plan(args, models: list[ModelPlan], folds, say) -> dict | None:
     return result
 
 
+def write_study(out: Path, result: dict, spec, title: str, intro: list[str]) -> str:
+    """Write results.json, table.md, the figure and report.md into ``out``; return the table."""
+    write_results(out, result, spec)
+    table = (out / 'table.md').read_text()
+    (out / 'report.md').write_text(report_text(title, result, table, intro))
+    return table
+
+
 def report_text(title: str, result: dict, table: str, intro: list[str]) -> str:
     """Return report.md: what was compared how, the table, the do-no-harm check."""
     p = result['protocol']
@@ -158,13 +166,9 @@ def main(argv=None) -> int:
         return 1
     if result is None:
         return 1
-    write_results(args.out, result, spec)
-    table = (args.out / 'table.md').read_text()
-    (args.out / 'report.md').write_text(report_text(
-        f'Cross-validated comparison on {spec.name}', result, table,
-        [f'Dataset `{args.dataset}`; models: '
-         + ', '.join(f'{label} (`{config}`)' for label, config in args.model) + '.', '']))
-    print(table)
+    print(write_study(args.out, result, spec, f'Cross-validated comparison on {spec.name}',
+                      [f'Dataset `{args.dataset}`; models: ' + ', '.join(
+                          f'{label} (`{config}`)' for label, config in args.model) + '.', '']))
     return 0
 
 
