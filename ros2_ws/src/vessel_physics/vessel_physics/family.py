@@ -410,5 +410,11 @@ def one_dof(value, dof: int, n_dof: int):
     return xp.stack([value if j == dof else zero for j in range(n_dof)], axis=-1)
 
 
+def unit_force(z, dof: int, n_dof: int):
+    """Return (..., n_dof) with 1 in column ``dof`` for each state of ``z``: a constant bias."""
+    xp = namespace(z)
+    return one_dof(xp.ones_like(z[..., 0]), dof, n_dof)
+
+
 __all__ = ['ExtraTerm', 'Family', 'KINDS', 'Physics', 'SteadySpec', 'Term', 'VELOCITIES',
-           'one_dof', 'term_registry']
+           'one_dof', 'term_registry', 'unit_force']

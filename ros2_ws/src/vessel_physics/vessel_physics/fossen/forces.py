@@ -17,7 +17,7 @@ import numpy as np
 
 from vessel_physics.apparent import apparent_wind
 from vessel_physics.arrays import constant, namespace
-from vessel_physics.family import one_dof
+from vessel_physics.family import unit_force
 from vessel_physics.fossen.params import FossenParams
 
 DOFS = ('X', 'Y', 'N')
@@ -180,8 +180,7 @@ def wind(z, c, params: FossenParams):
 
 
 def _constant(z, dof: int):
-    xp = namespace(z)
-    return one_dof(xp.ones_like(z[..., 0]), dof, len(DOFS))
+    return unit_force(z, dof, len(DOFS))
 
 
 def surge_bias(z, c, params: FossenParams):

@@ -34,7 +34,7 @@ import numpy as np
 
 from vessel_physics.apparent import apparent_wind as relative_air
 from vessel_physics.arrays import constant, namespace
-from vessel_physics.family import one_dof
+from vessel_physics.family import one_dof, unit_force
 from vessel_physics.patrol.forces import DOFS, propulsion, unit_thrust
 from vessel_physics.patrol.params import PatrolParams
 
@@ -75,8 +75,7 @@ def yaw_sway_linear(z, c, params: PatrolParams):
 
 
 def _constant(z, dof: int):
-    xp = namespace(z)
-    return _one_dof(xp.ones_like(z[..., 0]), dof)
+    return unit_force(z, dof, len(DOFS))
 
 
 def surge_bias(z, c, params: PatrolParams):
