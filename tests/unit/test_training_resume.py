@@ -64,6 +64,38 @@ def test_resume_after_kill_loses_at_most_one_epoch(tmp_path):
         assert (a[key] == b[key]).all(), key
 
 
+class Killed(BaseException):
+    """Stands for SIGKILL inside the training loop (no handler catches it)."""
+
+
+@pytest.mark.parametrize('when', ['before', 'after'])
+def test_a_kill_around_the_checkpoint_write_leaves_a_log_the_resume_continues(
+        tmp_path, monkeypatch, when):
+    from hybrid_models.training import loop
+
+    toy = write_toy_dataset(tmp_path / 'toy', n_runs=4, n_samples=200)
+    cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'])
+    save_last, calls = loop._save_last, []
+
+    def killed_at_the_third(*args):
+        calls.append(1)
+        if len(calls) == 3 and when == 'before':
+            raise Killed
+        save_last(*args)
+        if len(calls) == 3:
+            raise Killed
+
+    monkeypatch.setattr(loop, '_save_last', killed_at_the_third)
+    with pytest.raises(Killed):
+        train(cfg, tmp_path / 'run')
+    monkeypatch.setattr(loop, '_save_last', save_last)
+    train(cfg, tmp_path / 'run', resume=True)
+    epochs = [int(line.split('"epoch": ')[1].split(',')[0])
+              for line in (tmp_path / 'run' / 'log.jsonl').read_text().splitlines()]
+    assert epochs == list(range(-1, len(epochs) - 1)), epochs   # no gap, no repeat
+    assert len(epochs) > 4
+
+
 @pytest.mark.parametrize('content', [b'garbage'])
 def test_resume_refuses_a_foreign_last_checkpoint(tmp_path, content):
     toy = write_toy_dataset(tmp_path / 'toy', n_runs=4, n_samples=200)

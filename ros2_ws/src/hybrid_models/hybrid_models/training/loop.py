@@ -210,9 +210,11 @@ def fit(model: nn.Module, task: Task, cfg: dict, out_dir: Path,
             state.stop_reason = state.stop_reason or 'all phases done'
         if not group.main:
             continue
-        _save_last(out_dir, model, optimizer, state, checkpoint_config())
+        # The log line first: a kill between the two writes leaves the log one epoch
+        # ahead, which a resume truncates and redoes; the other order lost the line.
         with open(out_dir / LOG, 'a') as f:
             f.write(json.dumps(record) + '\n')
+        _save_last(out_dir, model, optimizer, state, checkpoint_config())
         print(f"epoch {record['epoch']:3d} {phase['kind']:9s} loss {train_loss:.4g} "
               f"val {val['score']:.4g} best {state.best_score:.4g}"
               + (' (rolled back)' if rolled_back else ''), file=sys.stderr)
