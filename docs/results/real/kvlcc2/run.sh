@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Derive every KVLCC2 figure in docs/results/real/README.md from the original tank logs.
 # Usage (repo root, after `make setup`): docs/results/real/kvlcc2/run.sh [SHARED_REAL] [WORK]
-# About two hours on 2 cores: 15 trainings on the held-out split and 75 over five folds,
-# about a minute each (a second call keeps every finished training).
+# About three hours on 2 cores: 15 trainings on the held-out split and 75 over five folds,
+# one to three minutes each (a second call keeps every finished training).
 set -euo pipefail
 REAL="${1:-../shared/real}"
 WORK="${2:-/tmp/real}"
