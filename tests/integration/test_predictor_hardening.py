@@ -31,7 +31,10 @@ class LiveFeeder:
     """Publish a window of history at once, then live samples at RATE_HZ (wall clock)."""
 
     def __init__(self, graph: Graph):
-        self.feeder = Feeder(graph.node)
+        from rclpy.qos import qos_profile_sensor_data
+
+        # Best effort, as many sensor drivers publish: the predictor must hear it.
+        self.feeder = Feeder(graph.node, qos=qos_profile_sensor_data)
         self.running = True
         now = time.time()
         for k in range(int(WINDOW_S) + 5):
@@ -249,9 +252,10 @@ while pub.get_subscription_count() == 0:
     time.sleep(0.05)
 old = m.odometry_from_state(dict(u=6.0, v=0.0, p=0.0, r=0.0, phi=0.0, psi=0.0, x=0.0, y=0.0),
                             m.stamp_from_seconds(time.time() - 30.0), 'odom', 'base_link')
+started = time.monotonic()
 for _ in range(int(sys.argv[1])):
     pub.publish(old)
-print('burst sent', flush=True)
+print(f'burst sent in {time.monotonic() - started:.2f} s', flush=True)
 time.sleep(1.0)
 """
 
@@ -265,15 +269,20 @@ def test_a_burst_of_20000_messages_is_read_through_while_forecasts_go_on(fed, tm
     launcher = Launcher(tmp_path)
     try:
         burst = launcher.start([sys.executable, '-c', BURST_SCRIPT, str(BURST)], 'burst')
-        started = time.monotonic()
+        started, started_wall = time.monotonic(), time.time()
         assert burst.popen.wait(60) == 0, burst.output()[-2000:]
         time.sleep(2.0)
         ended = time.monotonic()
     finally:
         launcher.stop_all()
-    arrivals = [t for t, _ in graph.forecasts if started <= t <= ended]
-    gaps = np.diff([started, *arrivals, ended])
-    assert gaps.max() <= BURST_SILENCE, (gaps.max(), ended - started)
+    received = [(t, graph.stamp(k)) for k, (t, _) in enumerate(graph.forecasts)
+                if started <= t <= ended]
+    gaps = np.diff([started, *(t for t, _ in received), ended])
+    # Arrival and stamp of each forecast (s after the start): a forecast arriving long
+    # after its stamp was held in transport, one missing was never made.
+    assert gaps.max() <= BURST_SILENCE, (
+        gaps.max(), [(round(t - started, 2), round(stamp - started_wall, 2))
+                     for t, stamp in received], burst.output()[-100:])
     # The burst was read (keep-last queues, the publisher's and the node's, drop part
     # of it) and the newest real samples are still the ones forecast.
     assert graph.count('rejected_out_of_order') > before, graph.values()

@@ -195,12 +195,13 @@ class PredictorNode(Node):
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         inputs = MutuallyExclusiveCallbackGroup()
-        depth = p['input_queue_depth']
+        input_qos = QoSProfile(depth=p['input_queue_depth'], reliability=(
+            ReliabilityPolicy.RELIABLE if p['reliable_inputs'] else ReliabilityPolicy.BEST_EFFORT))
         self.readers = {}
         for topic, msg_class in messages.message_types(self.topic_map).items():
             self.readers[topic] = channel_reader(self.topic_map, topic)
             self.create_subscription(msg_class, self.resolved[topic],
-                                     partial(self._on_input, topic), depth,
+                                     partial(self._on_input, topic), input_qos,
                                      callback_group=inputs)
         self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10,
                                  callback_group=inputs)
