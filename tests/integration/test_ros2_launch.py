@@ -131,8 +131,8 @@ def test_demo_launch_answers_the_cli_and_records_its_namespace(
     assert echo.returncode == 0 and 'patrol_boat' in echo.stdout, echo.stderr
 
     horizon = forecasts[-1].horizon
-    plan = {'shaft_speed': [80.0] * horizon, 'rudder_port': [0.05] * horizon,
-            'rudder_stbd': [0.05] * horizon}
+    plan = {'control_names': ['n', 'delta_port', 'delta_stbd'],
+            'control_units': ['rad/s', 'rad', 'rad'], 'values': [80.0, 0.05, 0.05] * horizon}
     request = yaml.safe_dump({'plans': [plan]}, default_flow_style=True, width=math.inf)
     for _ in range(3):   # a window gone stale under load is refused; nothing else is
         call = ros2('service', 'call', '/demo1/predictor/predict',
