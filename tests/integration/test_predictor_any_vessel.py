@@ -106,6 +106,14 @@ def test_predictor_serves_a_foreign_vessel_on_its_own_topics(skiff_model, launch
     assert np.sign(hybrid[0, 2]) == np.sign(odom_r) and abs(hybrid[0, 2] - odom_r) < 0.03
     np.testing.assert_allclose(np.diff(msg.heading), hybrid[1:, 2] * msg.step_period,
                                rtol=0.05, atol=1e-4)
+    # Calibrated bands with every forecast, around it, in its frame, never narrowing.
+    assert list(msg.band_levels) == [0.5, 0.9], msg.band_note
+    lower = np.reshape(msg.band_lower, (2, 100, 3))
+    upper = np.reshape(msg.band_upper, (2, 100, 3))
+    radius = np.reshape(msg.band_position_radius, (2, 100))
+    width = upper - lower
+    assert np.all(width >= 0) and np.all(width[1] >= width[0] - 1e-12)
+    assert np.all(np.diff(width, axis=1) >= -1e-9) and np.all(np.diff(radius, axis=1) >= -1e-9)
     # What-if in the skiff's own controls (n, delta); the patrol boat's are refused.
     client = ros_node.create_client(Predict, '/vessel/predictor/predict')
     assert client.wait_for_service(timeout_sec=10)

@@ -133,6 +133,8 @@ class PredictorNode(Node):
         self.topic_map = topic_map_for(self.spec)
         self.horizon = p['horizon'] or self.spec.horizon
         self.limits = PlanLimits.of(self.spec)
+        self.bands = self.engine.bands
+        self.get_logger().info(f'forecast bands: {self.engine.bands_note}')
         self.sim_time = bool(self.get_parameter('use_sim_time').value)
         window = self.engine.window
         check_time_parameters(p)
@@ -458,6 +460,9 @@ class PredictorNode(Node):
         names = self.spec.state_names
         hybrid_flu = frames.states_frd_to_flu(hybrid, names)
         physics_flu = frames.states_frd_to_flu(physics, names)
+        if self.bands is not None:
+            lower, upper, radius = self.bands.bounds(hybrid)
+            lower, upper = frames.interval_frd_to_flu(lower, upper, names)
         out = []
         for i in range(len(hybrid)):
             msg = Forecast()
@@ -475,6 +480,11 @@ class PredictorNode(Node):
             msg.residual_bound = doubles(self.engine.bound)
             msg.x, msg.y, msg.heading = doubles(x_enu[i]), doubles(y_enu[i]), doubles(
                 heading[i])
+            msg.band_note = self.engine.bands_note
+            if self.bands is not None:
+                msg.band_levels = list(self.bands.levels)
+                msg.band_lower, msg.band_upper = doubles(lower[i]), doubles(upper[i])
+                msg.band_position_radius = doubles(radius)
             msg.model_id = self.engine.model_id
             msg.controls_assumed = assumed[i].controls
             msg.plan_id = assumed[i].plan_id
