@@ -132,6 +132,7 @@ def test_predictor_serves_a_foreign_vessel_on_its_own_topics(skiff_model, launch
     assert answer.success, answer.message
     assert [list(f.control_names) for f in answer.forecasts] == [['n', 'delta']] * 2
     assert answer.forecasts[0].hybrid != answer.forecasts[1].hybrid
+    assert all(list(f.band_levels) == [0.5, 0.9] for f in answer.forecasts)   # what-ifs too
     refused = ask(ControlPlan(control_names=['n', 'delta_port', 'delta_stbd'],
                               control_units=['rad/s', 'rad', 'rad'], values=[25.0, 0, 0] * 100))
     assert not refused.success and "not among the controls of vessel 'skiff'" in \

@@ -82,6 +82,10 @@ def test_bands_go_through_a_checkpoint_config_and_hold_only_at_their_threshold()
         calibrate(np.full_like(pred, np.nan), true, SHIP, 0.15)
 
 
+# Slow (8 s: a training and four compiled engines). By default the skiff's predictor test
+# (tests/integration/test_predictor_any_vessel.py) still trains a model whose bands the
+# node publishes.
+@pytest.mark.slow
 def test_training_writes_bands_that_the_engine_serves_and_set_bands_renews(tmp_path):
     from safetensors.numpy import load_file
 
