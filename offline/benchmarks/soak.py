@@ -16,7 +16,6 @@ at the end, and 20 samples in between (growth that levels off, or keeps on).
 
 from __future__ import annotations
 
-from array import array
 from pathlib import Path
 import threading
 import time
@@ -69,15 +68,16 @@ def rss_mb(pid: int) -> float:
 
 def make_plans(count: int, seed: int = 0):
     """Return ``count`` ControlPlans of steady shaft and rudder variations."""
-    from hybrid_predictor_interfaces.msg import ControlPlan
+    from hybrid_predictor.plan_message import control_plan
+    from vessel_description import load_vessel
 
+    boat = load_vessel('patrol_boat')
     rng = np.random.default_rng(seed)
     plans = []
     for _ in range(count):
         rudder = float(rng.uniform(-0.2, 0.2))
-        plans.append(ControlPlan(shaft_speed=array('d', [float(rng.uniform(60, 100))] * HORIZON),
-                                 rudder_port=array('d', [rudder] * HORIZON),
-                                 rudder_stbd=array('d', [rudder] * HORIZON)))
+        row = [float(rng.uniform(60, 100)), rudder, rudder]
+        plans.append(control_plan(boat, np.tile(row, (HORIZON, 1))))
     return plans
 
 

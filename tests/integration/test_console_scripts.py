@@ -16,6 +16,7 @@ PROGRAMS = {
     'reproduce_table2': 'hybrid_models',
     'compare_physics': 'hybrid_models',
     'set_threshold': 'hybrid_models',
+    'set_bands': 'hybrid_models',
     'model_card': 'hybrid_models',
     'crossval': 'hybrid_models',
     'simulate': 'vessel_datasets',

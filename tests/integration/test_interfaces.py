@@ -14,9 +14,10 @@ ECHO_SERVER = Path(__file__).parent / 'nodes' / 'predict_echo_server.py'
 def make_plan(shaft_speed):
     from hybrid_predictor_interfaces.msg import ControlPlan
 
-    n = len(shaft_speed)
-    return ControlPlan(shaft_speed=list(shaft_speed), rudder_port=[0.01 * k for k in range(n)],
-                       rudder_stbd=[-0.01 * k for k in range(n)])
+    values = [[n, 0.01 * k, -0.01 * k] for k, n in enumerate(shaft_speed)]
+    return ControlPlan(control_names=['n', 'delta_port', 'delta_stbd'],
+                       control_units=['rad/s', 'rad', 'rad'],
+                       values=[x for row in values for x in row])
 
 
 def call(node, client, request, timeout=15.0):

@@ -4,7 +4,8 @@ The predictor for a vessel that is not ours: its own topics, vectors and checkpo
 A 3-DOF skiff (one propeller, one rudder, no wind, 10 Hz; tests/unit/test_any_vessel.py)
 is trained in seconds, then the installed predictor is started with its vessel file and
 checkpoint, fed over DDS on the skiff's topics, and must publish forecasts with the
-skiff's state and control names. A checkpoint of another vessel is refused in one line.
+skiff's state and control names, in the odometry's frames, and answer what-if plans
+in the skiff's own controls. A checkpoint of another vessel is refused in one line.
 """
 
 from pathlib import Path
@@ -99,13 +100,45 @@ def test_predictor_serves_a_foreign_vessel_on_its_own_topics(skiff_model, launch
     hybrid = np.reshape(msg.hybrid, (100, 3))
     assert np.isfinite(hybrid).all()
     assert hybrid[0, 0] == pytest.approx(0.8, abs=0.5)  # starts near the measured surge
-    # Plans name the patrol boat's actuators: refused with the reason, never silently.
+    # The forecast speaks the odometry's convention (REP-103): FLU rates, ENU heading.
+    odom_r = -0.05
+    assert msg.child_frame_id == 'base_link'
+    assert np.sign(hybrid[0, 2]) == np.sign(odom_r) and abs(hybrid[0, 2] - odom_r) < 0.03
+    np.testing.assert_allclose(np.diff(msg.heading), hybrid[1:, 2] * msg.step_period,
+                               rtol=0.05, atol=1e-4)
+    # Calibrated bands with every forecast, around it, in its frame, never narrowing.
+    assert list(msg.band_levels) == [0.5, 0.9], msg.band_note
+    lower = np.reshape(msg.band_lower, (2, 100, 3))
+    upper = np.reshape(msg.band_upper, (2, 100, 3))
+    radius = np.reshape(msg.band_position_radius, (2, 100))
+    width = upper - lower
+    assert np.all(width >= 0) and np.all(width[1] >= width[0] - 1e-12)
+    assert np.all(np.diff(width, axis=1) >= -1e-9) and np.all(np.diff(radius, axis=1) >= -1e-9)
+    # What-if in the skiff's own controls (n, delta); the patrol boat's are refused.
     client = ros_node.create_client(Predict, '/vessel/predictor/predict')
     assert client.wait_for_service(timeout_sec=10)
-    future = client.call_async(Predict.Request(plans=[ControlPlan()]))
-    assert spin_until(ros_node, future.done, 10)
-    response = future.result()
-    assert not response.success and "vessel 'skiff' has controls" in response.message
+
+    def ask(*plans):
+        future = client.call_async(Predict.Request(plans=list(plans)))
+        assert spin_until(ros_node, future.done, 10)
+        return future.result()
+
+    def skiff_plan(rudder, names=('n', 'delta'), units=('rad/s', 'rad')):
+        return ControlPlan(control_names=list(names), control_units=list(units),
+                           values=[25.0, rudder] * 100)
+
+    publish_skiff(ros_node, seconds=1.0)     # keep the window fresh
+    answer = ask(skiff_plan(-0.3), skiff_plan(0.3))
+    assert answer.success, answer.message
+    assert [list(f.control_names) for f in answer.forecasts] == [['n', 'delta']] * 2
+    assert answer.forecasts[0].hybrid != answer.forecasts[1].hybrid
+    assert all(list(f.band_levels) == [0.5, 0.9] for f in answer.forecasts)   # what-ifs too
+    refused = ask(ControlPlan(control_names=['n', 'delta_port', 'delta_stbd'],
+                              control_units=['rad/s', 'rad', 'rad'], values=[25.0, 0, 0] * 100))
+    assert not refused.success and "not among the controls of vessel 'skiff'" in \
+        refused.message and '\n' not in refused.message
+    wrong_unit = ask(skiff_plan(0.0, units=('rpm', 'rad')))
+    assert not wrong_unit.success and "n in 'rpm'" in wrong_unit.message
 
 
 def test_a_checkpoint_of_another_vessel_is_refused_at_start(skiff_model, launcher, ros_node):

@@ -66,12 +66,19 @@ def fed(tmp_path_factory):
         launcher.stop_all()
 
 
-def plan(n=900, **fields):
+ACTUATORS = ['n', 'delta_port', 'delta_stbd']
+WIND = ['wind_speed', 'wind_dir_cos', 'wind_dir_sin']
+UNITS = {'n': 'rad/s', 'delta_port': 'rad', 'delta_stbd': 'rad', 'wind_speed': 'm/s',
+         'wind_dir_cos': '1', 'wind_dir_sin': '1'}
+
+
+def plan(n=900, row=(85.0, 0.01, 0.01), names=ACTUATORS, units=None, plan_id=''):
+    """Return a ControlPlan of ``n`` equal rows in the patrol boat's controls."""
     from hybrid_predictor_interfaces.msg import ControlPlan
 
-    fields = {'shaft_speed': [85.0] * n, 'rudder_port': [0.01] * n,
-              'rudder_stbd': [0.01] * n, **fields}
-    return ControlPlan(**fields)
+    units = [UNITS[name] for name in names] if units is None else units
+    return ControlPlan(plan_id=plan_id, control_names=list(names), control_units=units,
+                       values=list(row) * n)
 
 
 def test_malformed_plans_are_refused_on_the_service_and_the_topic(fed):
@@ -81,27 +88,30 @@ def test_malformed_plans_are_refused_on_the_service_and_the_topic(fed):
     graph, predictor = fed
     client = graph.node.create_client(Predict, '/vessel/predictor/predict')
     assert client.wait_for_service(timeout_sec=30)
-    for plans, why in (([plan(wind_speed=[5.0] * 900)], 'wind_direction 0; give both'),
-                       ([plan(wind_direction=[0.3] * 900)], 'wind_speed has 0 entries'),
-                       ([plan(), plan(wind_speed=[5.0] * 900, wind_direction=[0.1] * 899)],
-                        'plan 1: wind_speed has 900 entries and wind_direction 899'),
-                       ([plan(wind_speed=[-1.0] * 900, wind_direction=[0.0] * 900)],
-                        'wind_speed must be >= 0'),
+    windy = ACTUATORS + WIND
+    for plans, why in (([plan(names=ACTUATORS + ['wind_speed'], row=(85.0, 0, 0, 5.0))],
+                         "give ['wind_speed', 'wind_dir_cos', 'wind_dir_sin'] together"),
+                       ([plan(names=['shaft_speed', 'rudder_port', 'rudder_stbd'],
+                              units=['rad/s', 'rad', 'rad'])],
+                        "not among the controls of vessel 'patrol_boat': n [rad/s]"),
+                       ([plan(), plan(n=899)], 'plan 1: 899 steps of 3 controls, need 900'),
+                       ([plan(units=['rpm', 'rad', 'rad'])],
+                        "plan 0: n in 'rpm'; vessel 'patrol_boat' declares it in 'rad/s'"),
                        # Every field against the vessel's declared range (#25): 1e6 m/s of
                        # wind used to pass and came back as a non-finite forecast.
-                       ([plan(wind_speed=[1e6] * 900, wind_direction=[0.0] * 900)],
+                       ([plan(names=windy, row=(85.0, 0, 0, 1e6, 1.0, 0.0))],
                         'wind_speed[0] = 1e+06 outside [0, 40] m/s'),
-                       ([plan(shaft_speed=[-5.0] * 900)], 'shaft_speed[0] = -5 outside')):
+                       ([plan(row=(-5.0, 0, 0))], 'n[0] = -5 outside')):
         answer = graph.call(client, Predict.Request(plans=plans))
         assert not answer.success and why in answer.message, answer.message
-        assert len(answer.forecasts) == 0
-    good = graph.call(client, Predict.Request(plans=[plan(wind_speed=[5.0] * 900,
-                                                          wind_direction=[0.3] * 900)]))
+        assert '\n' not in answer.message and len(answer.forecasts) == 0
+    good = graph.call(client, Predict.Request(plans=[plan(
+        names=windy, row=(85.0, 0.01, 0.01, 5.0, math.cos(0.3), math.sin(0.3)))]))
     assert good.success, good.message
 
     pub = graph.node.create_publisher(ControlPlan, '/vessel/control_plan', 10)
     assert wait_for(lambda: pub.get_subscription_count() > 0, 10)
-    bad = plan(wind_speed=[5.0] * 900)
+    bad = plan(names=ACTUATORS + ['wind_speed'], row=(85.0, 0, 0, 5.0))
     bad.header.stamp = graph.node.get_clock().now().to_msg()
     pub.publish(bad)
     assert wait_for(lambda: graph.count('plans_rejected') >= 1, 10), graph.values()

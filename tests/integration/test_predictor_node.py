@@ -70,6 +70,7 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     import torch
 
     from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_physics import frames
     from vessel_ros_bridge import messages as m
 
     inputs = Inputs(ros_node)
@@ -95,6 +96,17 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     pose = next(o for o in inputs.odom if m.seconds_from_stamp(o.header.stamp) == t_end)
     start = pose.pose.pose.position
     assert math.hypot(msg.x[0] - start.x, msg.y[0] - start.y) < 15.0
+    # The shipped model's calibrated bands come with it, widening along the horizon.
+    assert list(msg.band_levels) == [0.5, 0.9], msg.band_note
+    radius = np.reshape(msg.band_position_radius, (2, 900))
+    width = np.reshape(msg.band_upper, (2, 900, 5)) - np.reshape(msg.band_lower, (2, 900, 5))
+    assert np.all(np.diff(radius, axis=1) >= 0) and np.all(np.diff(width, axis=1) >= -1e-12)
+    assert np.all(radius[1] > radius[0]) and 50.0 < radius[1, 299] < 500.0   # m after 5 min
+    # States in the odometry's FLU: the first step's rates carry the odometry's signs.
+    twist = pose.twist.twist
+    assert msg.child_frame_id == 'base_link'
+    np.testing.assert_allclose(hybrid[0, [0, 1, 3]], [twist.linear.x, twist.linear.y,
+                                                      twist.angular.z], rtol=0.2, atol=0.02)
 
     model, _ = default_model()
     window = inputs.window_until(t_end, 60)
@@ -105,7 +117,8 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
                                   torch.as_tensor(window.controls[None]),
                                   torch.as_tensor(future))[0].numpy()
     scale = np.abs(expected).max(axis=0) + 1e-3
-    assert np.max(np.abs(hybrid - expected) / scale) < 2e-3
+    frd = frames.states_flu_to_frd(hybrid, msg.state_names)
+    assert np.max(np.abs(frd - expected) / scale) < 2e-3
 
 
 def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, ros_node):
@@ -117,8 +130,9 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
     assert client.wait_for_service(timeout_sec=60)
 
     def plan(rudder, n=900, shaft=90.0):
-        return ControlPlan(shaft_speed=[shaft] * n, rudder_port=[rudder] * n,
-                           rudder_stbd=[rudder] * n)
+        return ControlPlan(control_names=['n', 'delta_port', 'delta_stbd'],
+                           control_units=['rad/s', 'rad', 'rad'],
+                           values=[shaft, rudder, rudder] * n)
 
     def call(plans):
         future = client.call_async(Predict.Request(plans=plans))
@@ -307,9 +321,11 @@ def test_stale_inputs_give_a_clear_status_and_no_forecast(launcher, ros_node):
     now = time.time()
     for k in range(70):      # a complete window that ended 30 s ago
         feeder.sample(now - 100 + k)
+    # A status may be published while the burst is still being read (then the newest
+    # state it names is up to 100 s old): wait for the one after the whole burst.
     def stale():
-        return diagnostics and 'old' in diagnostics[-1].status[0].message
+        return diagnostics and 'newest state is 3' in diagnostics[-1].status[0].message
     assert spin_until(ros_node, stale, 15), diagnostics[-1].status[0].message
     status = diagnostics[-1].status[0]
-    assert status.level == b'\x02' and 'newest state is 3' in status.message
+    assert status.level == b'\x02' and 'old' in status.message
     assert not forecasts

@@ -125,3 +125,28 @@ def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launc
     hybrid = np.reshape(msg.hybrid, (boat.horizon, boat.n_state))
     assert np.isfinite(hybrid).all()
     assert 0.3 < hybrid[0, 0] < boat.limits['u'][1]     # starts near the simulated surge
+    # What-if in the vessel's own controls: two plans, one batch, each answered; the
+    # same plan with a wrong unit is refused in one line.
+    from hybrid_predictor.plan_message import control_plan
+    from hybrid_predictor_interfaces.srv import Predict
+
+    client = ros_node.create_client(Predict, '/vessel/predictor/predict')
+    assert client.wait_for_service(timeout_sec=10)
+    low = np.array([a.low for a in boat.actuators])
+    high = np.array([a.high for a in boat.actuators])
+    plans = [control_plan(boat, np.tile(low + f * (high - low), (boat.horizon, 1)))
+             for f in (0.6, 0.9)]
+    wrong = control_plan(boat, np.tile(low, (boat.horizon, 1)))
+    wrong.control_units[0] = 'rpm'
+
+    def ask(request_plans):
+        future = client.call_async(Predict.Request(plans=request_plans))
+        assert spin_until(ros_node, future.done, 30)
+        return future.result()
+
+    answer = ask(plans)
+    assert answer.success, answer.message
+    assert [list(f.control_names) for f in answer.forecasts] == [list(boat.control_names)] * 2
+    assert not np.allclose(answer.forecasts[0].hybrid, answer.forecasts[1].hybrid)
+    refused = ask([wrong])
+    assert not refused.success and f"{boat.actuator_names[0]} in 'rpm'" in refused.message

@@ -86,3 +86,38 @@ def test_wind_vector_examples_and_round_trip():
     s2, c2, n2 = frames.wind_from_flu(vx, vy)
     np.testing.assert_allclose((s2, c2, n2), (speed, np.cos(gamma), np.sin(gamma)),
                                atol=1e-12)
+
+
+NAMES = ('u', 'v', 'p', 'r', 'phi')
+
+
+def test_states_go_to_flu_and_back_exactly_and_agree_with_the_twist_and_the_heading():
+    z = RNG.normal(size=(4, 7, 5))
+    flu = frames.states_frd_to_flu(z, NAMES)
+    np.testing.assert_array_equal(frames.states_flu_to_frd(flu, NAMES), z)
+    # The twist's map, per state, and roll is one angle in both frames.
+    u, v, p, r = frames.twist_frd_to_flu(*z[..., :4].transpose(2, 0, 1))
+    np.testing.assert_array_equal(flu[..., :4], np.stack([u, v, p, r], axis=-1))
+    np.testing.assert_array_equal(flu[..., 4], z[..., 4])
+    roll, _, _ = frames.euler_from_quaternion(*frames.orientation_ned_to_enu(0.2, 0.4))
+    assert roll == pytest.approx(0.2)
+    # A 3-DOF vessel's states, in its own order.
+    np.testing.assert_array_equal(frames.states_frd_to_flu([[1.0, 2.0, 3.0]], 'uvr'),
+                                  [[1.0, -2.0, -3.0]])
+    # FLU yaw rate is the rate of the ENU heading (a turn to starboard: r > 0 in FRD).
+    psi = 0.3 + 0.05 * np.arange(3.0)
+    yaw = frames.heading_ned_to_enu(psi)
+    r_flu = frames.states_frd_to_flu([[0.0, 0.0, 0.05]], 'uvr')[0, 2]
+    np.testing.assert_allclose(np.diff(yaw), r_flu, rtol=1e-12)
+
+
+def test_an_interval_of_states_keeps_its_order_through_the_frame_change():
+    lower = np.array([[-1.0, -2.0, -0.1], [0.5, 0.1, 0.2]])
+    upper = lower + np.array([[2.0, 1.0, 0.3]])
+    lo, hi = frames.interval_frd_to_flu(lower, upper, 'uvr')
+    assert np.all(lo <= hi)
+    np.testing.assert_array_equal(lo[:, 0], lower[:, 0])                 # u keeps its sign
+    np.testing.assert_array_equal(lo[:, 1:], -upper[:, 1:])              # v, r swap ends
+    np.testing.assert_array_equal(hi[:, 1:], -lower[:, 1:])
+    back = frames.interval_frd_to_flu(lo, hi, 'uvr')                     # its own inverse
+    np.testing.assert_array_equal(back, (lower, upper))

@@ -16,87 +16,124 @@ from hybrid_predictor.plans import (
     plan_controls,
     track,
 )
+from vessel_description import load_vessel
 
-LIMITS = PlanLimits('test_boat', {'shaft_speed': (0.0, 100.0, 'rad/s'),
-                                  'rudder_port': (-0.6, 0.6, 'rad'),
-                                  'rudder_stbd': (-0.6, 0.6, 'rad'),
-                                  'wind_speed': (0.0, 40.0, 'm/s')})
-LATEST = np.array([90.0, 0.01, 0.02, 4.0, 0.0, 1.0])
 H = 5
+PATROL = load_vessel('patrol_boat')
+LIMITS = PlanLimits.of(PATROL)
+LATEST = np.array([90.0, 0.01, 0.02, 4.0, 0.0, 1.0])
+ACTUATORS = ['n', 'delta_port', 'delta_stbd']
+ACTUATOR_UNITS = ['rad/s', 'rad', 'rad']
 
 
-def good_plan(**override):
-    plan = {'shaft_speed': np.full(H, 80.0), 'rudder_port': np.linspace(0, 0.1, H),
-            'rudder_stbd': np.linspace(0, 0.1, H)}
-    plan.update(override)
-    return plan
+def actuator_rows(n=80.0):
+    return np.column_stack([np.full(H, n), np.linspace(0, 0.1, H), np.linspace(0, 0.1, H)])
 
 
-def test_actuator_plan_holds_the_latest_wind():
-    out = plan_controls(good_plan(), LATEST, H, LIMITS)
+def planned(names=None, units=None, values=None, limits=LIMITS, **kwargs):
+    names = ACTUATORS if names is None else names
+    units = ACTUATOR_UNITS if units is None else units
+    values = actuator_rows() if values is None else values
+    return check_plan(names, units, values, H, limits, **kwargs)
+
+
+def test_an_actuator_plan_holds_the_latest_wind():
+    out = plan_controls(planned(), LATEST)
     assert out.shape == (H, 6)
     np.testing.assert_array_equal(out[:, 0], 80.0)
     np.testing.assert_array_equal(out[:, 2], np.linspace(0, 0.1, H))
     np.testing.assert_array_equal(out[:, 3:], np.tile(LATEST[3:], (H, 1)))
 
 
-def test_a_planned_wind_is_used_as_cos_sin_of_its_direction():
-    out = plan_controls(good_plan(wind_speed=np.full(H, 7.0),
-                                  wind_direction=np.full(H, -math.pi / 2)), LATEST, H, LIMITS)
-    np.testing.assert_allclose(out[0, 3:], [7.0, 0.0, -1.0], atol=1e-12)
+def test_columns_in_any_order_land_in_the_vessels_order_with_a_planned_wind():
+    wind = np.tile([7.0, 0.0, -1.0], (H, 1))     # 7 m/s from port
+    names = ['wind_dir_sin', 'delta_stbd', 'wind_speed', 'n', 'wind_dir_cos', 'delta_port']
+    units = ['1', 'rad', 'm/s', 'rad/s', '1', 'rad']
+    rows = actuator_rows()
+    values = np.column_stack([wind[:, 2], rows[:, 2], wind[:, 0], rows[:, 0], wind[:, 1],
+                              rows[:, 1]])
+    out = plan_controls(planned(names, units, values.ravel()), LATEST)
+    np.testing.assert_array_equal(out, np.column_stack([rows, wind]))
 
 
-@pytest.mark.parametrize('override, message', [
-    ({'shaft_speed': np.full(H - 1, 80.0)}, 'shaft_speed has 4 entries, need 5'),
-    ({'rudder_port': np.array([0, 0, np.nan, 0, 0])}, 'rudder_port[2] is nan'),
-    ({'rudder_stbd': np.full(H, np.inf)}, 'rudder_stbd[0] is inf'),
-    ({'shaft_speed': np.full(H, 150.0)}, 'shaft_speed[0] = 150 outside [0, 100] rad/s'),
-    ({'rudder_port': np.full(H, -0.7)}, 'rudder_port[0] = -0.7 outside [-0.6, 0.6] rad'),
-    ({'wind_speed': np.full(H, 1e6), 'wind_direction': np.zeros(H)},
-     'wind_speed[0] = 1e+06 outside [0, 40] m/s'),
-    ({'wind_speed': np.full(3, 1.0)}, 'wind_speed has 3 entries'),
-    ({'wind_speed': np.full(H, 5.0)}, 'wind_direction 0; give both'),
-    ({'wind_direction': np.zeros(H)}, 'wind_speed has 0 entries and wind_direction 5'),
-    ({'wind_speed': np.full(H, 5.0), 'wind_direction': np.full(H, np.nan)},
-     'wind_direction[0] is nan'),
-    ({'rudder_stbd': np.zeros(H + 2)}, 'rudder_stbd has 7 entries, need 5'),
-    ({'rudder_port': 'abc'}, 'rudder_port is not a sequence of numbers'),
-    ({'wind_speed': np.full(H, -1.0), 'wind_direction': np.zeros(H)}, 'wind_speed must be'),
+# The vessels of this repository with other controls: each plans in its own names.
+OTHER_VESSELS = {
+    'snuboat': (['n_port', 'n_stbd', 'delta_port', 'delta_stbd'],
+                ['rad/s', 'rad/s', 'rad', 'rad'], [120.0, -60.0, 0.2, -0.1]),
+    'kvlcc2_hsva': (['n', 'delta'], ['rad/s', 'rad'], [64.27, 0.6]),
+}
+
+
+@pytest.mark.parametrize('vessel', sorted(OTHER_VESSELS))
+def test_every_vessel_plans_in_its_own_controls(vessel):
+    names, units, row = OTHER_VESSELS[vessel]
+    limits = PlanLimits.of(load_vessel(vessel))
+    assert limits.names == tuple(names) and limits.units == tuple(units)
+    out = plan_controls(check_plan(names, units, np.tile(row, H), H, limits),
+                         np.zeros(len(names)))
+    np.testing.assert_array_equal(out, np.tile(row, (H, 1)))
+    # The patrol boat's plan is refused for it, in one line naming its controls.
+    with pytest.raises(PlanError, match=re.escape(f'vessel {vessel!r}: {names[0]} [')):
+        check_plan(ACTUATORS, ACTUATOR_UNITS, actuator_rows(), H, limits)
+
+
+@pytest.mark.parametrize('change, message', [
+    ({'names': []}, "no control_names; vessel 'patrol_boat' takes n [rad/s], delta_port"),
+    ({'names': ['shaft_speed', 'delta_port', 'delta_stbd']},
+     "['shaft_speed'] not among the controls of vessel 'patrol_boat'"),
+    ({'names': ['n', 'delta_port', 'n']}, "['n'] given more than once"),
+    ({'names': ['n', 'delta_port'], 'units': ['rad/s', 'rad'],
+      'values': actuator_rows()[:, :2]}, "actuators ['delta_stbd'] missing"),
+    ({'names': ACTUATORS + ['wind_speed'], 'units': ACTUATOR_UNITS + ['m/s'],
+      'values': np.column_stack([actuator_rows(), np.full(H, 5.0)])},
+     "give ['wind_speed', 'wind_dir_cos', 'wind_dir_sin'] together"),
+    ({'units': ['rpm', 'rad', 'rad']}, "n in 'rpm'; vessel 'patrol_boat' declares it in "
+                                       "'rad/s'"),
+    ({'units': ['rad/s', 'rad']}, '2 control_units for 3 control_names'),
+    ({'values': actuator_rows().ravel()[:-1]}, '14 values are not whole rows of 3 controls'),
+    ({'values': actuator_rows()[:-1]}, '4 steps of 3 controls, need 5'),
+    ({'values': np.vstack([actuator_rows()] * 2)}, '10 steps of 3 controls, need 5'),
+    ({'values': 'abc'}, 'values is not a sequence of numbers'),
+    ({'values': np.where(np.eye(H, 3, -1) > 0, np.nan, actuator_rows())},
+     'n[1] is nan'),
+    ({'values': actuator_rows(150.0)}, 'n[0] = 150 outside [0, 104.72] rad/s'),
+    ({'values': actuator_rows() + [0, -0.9, 0]}, 'delta_port[0] = -0.9 outside'),
+    ({'names': ACTUATORS + ['wind_speed', 'wind_dir_cos', 'wind_dir_sin'],
+      'units': ACTUATOR_UNITS + ['m/s', '1', '1'],
+      'values': np.column_stack([actuator_rows(), np.tile([50.0, 1.0, 0.0], (H, 1))])},
+     'wind_speed[0] = 50 outside [0, 40] m/s'),
+    ({'names': ACTUATORS + ['wind_speed', 'wind_dir_cos', 'wind_dir_sin'],
+      'units': ACTUATOR_UNITS + ['m/s', '1', '1'],
+      'values': np.column_stack([actuator_rows(), np.tile([5.0, 0.5, 0.5], (H, 1))])},
+     '(wind_dir_cos, wind_dir_sin)[0] = (0.5, 0.5) is not a unit direction'),
 ])
-def test_malformed_plans_are_refused_with_the_reason(override, message):
-    with pytest.raises(PlanError, match=re.escape(message)):
-        plan_controls(good_plan(**override), LATEST, H, LIMITS, index=3)
+def test_malformed_plans_are_refused_in_one_line_with_the_reason(change, message):
+    with pytest.raises(PlanError, match=re.escape(message)) as refused:
+        planned(**change, index=3)
+    assert str(refused.value).startswith('plan 3: ') and '\n' not in str(refused.value)
 
 
 def test_plan_limits_are_the_vessels_declared_ranges_and_wind_needs_one():
     from dataclasses import replace
 
-    from vessel_description import load_vessel
-
-    boat = load_vessel('patrol_boat')
-    limits = PlanLimits.of(boat)
-    assert limits.ranges['shaft_speed'][:2] == (boat.actuator('n').low, boat.actuator('n').high)
-    assert limits.ranges['rudder_stbd'][:2] == (boat.actuator('delta_stbd').low,
-                                                boat.actuator('delta_stbd').high)
-    assert limits.ranges['wind_speed'][:2] == boat.limits['wind_speed']
+    assert LIMITS.ranges['n'] == (PATROL.actuator('n').low, PATROL.actuator('n').high)
+    assert LIMITS.ranges['wind_speed'] == PATROL.limits['wind_speed']
     # A vessel with wind but no declared wind range: plans may only leave the wind out.
-    no_wind_range = PlanLimits.of(replace(boat, limits={k: v for k, v in boat.limits.items()
-                                                        if k != 'wind_speed'}))
-    plan = good_plan(wind_speed=np.full(H, 5.0), wind_direction=np.zeros(H))
+    no_wind_range = PlanLimits.of(replace(PATROL, limits={
+        k: v for k, v in PATROL.limits.items() if k != 'wind_speed'}))
+    wind = dict(names=ACTUATORS + ['wind_speed', 'wind_dir_cos', 'wind_dir_sin'],
+                units=ACTUATOR_UNITS + ['m/s', '1', '1'],
+                values=np.column_stack([actuator_rows(), np.tile([5.0, 1.0, 0.0], (H, 1))]))
     with pytest.raises(PlanError, match='declares no range for wind_speed'):
-        check_plan(plan, H, no_wind_range)
-    check_plan(good_plan(), H, no_wind_range)
-    assert PlanLimits.of(load_vessel('snuboat')) is None   # not the plan's controls
+        planned(**wind, limits=no_wind_range)
+    assert np.isnan(planned(limits=no_wind_range)[:, 3:]).all()
 
 
-def test_a_topic_plan_may_be_longer_than_the_horizon_but_not_ragged():
-    long = {k: np.concatenate([v, v]) for k, v in good_plan().items()}
-    arrays = check_plan(long, H, LIMITS, exact=False)
-    assert len(arrays['shaft_speed']) == 2 * H and len(arrays['wind_speed']) == 0
-    with pytest.raises(PlanError, match='need 5'):
-        check_plan(long, H, LIMITS)
+def test_a_topic_plan_may_be_longer_than_the_horizon():
+    long = np.vstack([actuator_rows()] * 2)
+    assert planned(values=long, exact=False).shape == (2 * H, 6)
     with pytest.raises(PlanError, match='need at least 5'):
-        check_plan(good_plan(shaft_speed=np.full(H - 1, 80.0)), H, LIMITS, exact=False)
+        planned(values=actuator_rows()[:-1], exact=False)
 
 
 def test_hold_latest_repeats_the_last_controls():
@@ -105,8 +142,6 @@ def test_hold_latest_repeats_the_last_controls():
 
 
 def test_track_is_the_metric_track_rotated_and_shifted_to_the_pose():
-    from vessel_description import load_vessel
-
     states = np.zeros((H, 5))
     states[:, 0] = 2.0   # straight ahead at u (the metric's heading 0 is north)
     north, east, heading = track(states, (100.0, 50.0, math.pi / 2),

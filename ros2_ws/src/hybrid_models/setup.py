@@ -24,6 +24,7 @@ setup(
         'train = hybrid_models.cli.train:main',
         'evaluate = hybrid_models.cli.evaluate:main',
         'set_threshold = hybrid_models.cli.set_threshold:main',
+        'set_bands = hybrid_models.cli.set_bands:main',
         'reproduce_table2 = hybrid_models.cli.reproduce_table2:main',
         'compare_physics = hybrid_models.cli.compare_physics:main',
         'model_card = hybrid_models.cli.model_card:main',

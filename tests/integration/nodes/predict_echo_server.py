@@ -1,7 +1,7 @@
 """
 A stand-in predictor for interface tests: answers Predict and publishes a Forecast.
 
-Each forecast is a deterministic function of its plan (hybrid[k, 0] = shaft_speed[k],
+Each forecast is a deterministic function of its plan (hybrid[k, :3] = the plan's row k,
 physics = hybrid / 2), so the client can check that every field crossed the process
 boundary intact and in order.
 """
@@ -20,10 +20,11 @@ UNITS = ['m/s', 'm/s', 'rad/s', 'rad/s', 'rad']
 
 def forecast_for(plan) -> Forecast:
     """Build the forecast this stand-in promises for a plan."""
-    horizon = len(plan.shaft_speed)
+    width = len(plan.control_names)
+    horizon = len(plan.values) // width
     hybrid = []
     for k in range(horizon):
-        hybrid += [plan.shaft_speed[k], plan.rudder_port[k], plan.rudder_stbd[k], 0.0, 0.0]
+        hybrid += [*plan.values[k * width:(k + 1) * width], 0.0, 0.0]
     msg = Forecast(step_period=1.0, horizon=horizon, state_names=STATES, state_units=UNITS,
                    hybrid=hybrid, physics=[h / 2 for h in hybrid],
                    residual_bound=[0.1] * len(STATES),
@@ -40,7 +41,7 @@ def main() -> int:
     node = rclpy.create_node('predict_echo_server')
 
     def on_predict(request, response):
-        if any(len(p.shaft_speed) == 0 for p in request.plans):
+        if any(len(p.values) == 0 for p in request.plans):
             response.success = False
             response.message = 'empty plan'
             return response
@@ -53,8 +54,8 @@ def main() -> int:
     publisher = node.create_publisher(Forecast, '/vessel/forecast', 10)
 
     def publish():
-        plan = ControlPlan(shaft_speed=[1.0, 2.0, 3.0], rudder_port=[0.0] * 3,
-                           rudder_stbd=[0.0] * 3)
+        plan = ControlPlan(control_names=['n', 'delta_port', 'delta_stbd'],
+                           values=[1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 3.0, 0.0, 0.0])
         publisher.publish(forecast_for(plan))
 
     node.create_timer(0.2, publish)

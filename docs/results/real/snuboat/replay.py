@@ -120,6 +120,7 @@ def main() -> int:
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_datasets.topic_map import topic_map_for
     from vessel_description import load_vessel
+    from vessel_physics.frames import states_flu_to_frd
 
     messages = bag_messages(args.bag, args.msg_dir)
     exe = REPO / 'ros2_ws/install/hybrid_predictor/lib/hybrid_predictor/predictor'
@@ -183,7 +184,8 @@ def main() -> int:
             continue
         future = np.broadcast_to(result.controls[-1], (1, fc.horizon, vessel.n_control))
         offline = engine.forecast(result.states, result.controls, future).hybrid[0]
-        online = np.reshape(fc.hybrid, (fc.horizon, vessel.n_state))
+        online = states_flu_to_frd(np.reshape(fc.hybrid, (fc.horizon, vessel.n_state)),
+                                   vessel.state_names)   # the message is FLU (REP-103)
         scale = np.maximum(np.abs(offline).max(axis=0), 1e-3)
         diffs.append(np.abs(online - offline).max(axis=0) / scale)
     diffs = np.asarray(diffs)

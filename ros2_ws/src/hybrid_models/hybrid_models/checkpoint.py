@@ -17,8 +17,6 @@ line.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import json
-import os
 from pathlib import Path
 
 from safetensors import SafetensorError
@@ -26,7 +24,14 @@ from safetensors.torch import load_file, save_file
 import torch
 from torch import nn
 
-from hybrid_models.checkpoint_format import FORMAT, CheckpointError, read_header, vessel_of
+from hybrid_models.checkpoint_format import (
+    FORMAT,
+    CheckpointError,
+    read_header,
+    rewrite_config,
+    vessel_of,
+    write_file,
+)
 from hybrid_models.models import build_model
 from vessel_description import Vessel
 
@@ -60,20 +65,7 @@ def save_checkpoint(path: str | Path, model: nn.Module, config: dict,
                 else:
                     scalars[f'{idx}/{key}'] = value
         config['optimizer'] = {'param_groups': opt['param_groups'], 'scalars': scalars}
-    meta = {'format': FORMAT, 'config': json.dumps(config, default=_json_default)}
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + '.tmp')
-    save_file(tensors, str(tmp), metadata=meta)
-    os.replace(tmp, path)
-    return path
-
-
-def _json_default(value):
-    if hasattr(value, 'tolist'):
-        return value.tolist()
-    if isinstance(value, (Path, tuple)):
-        return str(value) if isinstance(value, Path) else list(value)
-    raise TypeError(f'cannot store {type(value).__name__} in a checkpoint config')
+    return write_file(path, tensors, config, save_file)
 
 
 def load_checkpoint(path: str | Path) -> Checkpoint:
@@ -110,8 +102,8 @@ def upgrade_checkpoint(path: str | Path, vessel: Vessel) -> None:
     Only the header changes, and only when the stored vectors and rate are the vessel's;
     weights are kept bit for bit.
     """
-    ckpt = load_checkpoint(path)
-    old = ckpt.config.get('vehicle') or {}
+    config = read_header(path)
+    old = config.get('vehicle') or {}
     if 'format' in old:
         return  # already a vessel description
     stored = (tuple(old.get('state_names', ())), tuple(old.get('control_names', ())),
@@ -119,13 +111,7 @@ def upgrade_checkpoint(path: str | Path, vessel: Vessel) -> None:
     if stored != (vessel.state_names, vessel.control_names, vessel.rate_hz):
         raise CheckpointError(f'{path}: stored vectors and rate {stored} are not those of '
                               f'vessel {vessel.name!r}')
-    tensors = {**{f'model/{k}': v for k, v in ckpt.model_state.items()},
-               **{f'optim/{k}': v for k, v in ckpt.optim_state.items()}}
-    config = {**ckpt.config, 'vehicle': vessel.to_dict()}
-    meta = {'format': FORMAT, 'config': json.dumps(config, default=_json_default)}
-    tmp = Path(path).with_name(Path(path).name + '.tmp')
-    save_file(tensors, str(tmp), metadata=meta)
-    os.replace(tmp, path)
+    rewrite_config(path, {**config, 'vehicle': vessel.to_dict()})
 
 
 def load_model(path: str | Path) -> tuple[nn.Module, dict]:

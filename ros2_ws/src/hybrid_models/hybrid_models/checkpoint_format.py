@@ -10,12 +10,13 @@ this module is what serving needs, so that the predictor never imports torch.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 import struct
 
 import numpy as np
 from safetensors import SafetensorError
-from safetensors.numpy import load_file
+from safetensors.numpy import load_file, save_file
 
 from vessel_description import Vessel, VesselError
 
@@ -62,6 +63,41 @@ def read_model_arrays(path: str | Path) -> tuple[dict, dict[str, np.ndarray]]:
         raise CheckpointError(f'{path}: damaged hybrid_models checkpoint ({exc})') from None
     return config, {k[len(MODEL_PREFIX):]: v for k, v in tensors.items()
                     if k.startswith(MODEL_PREFIX)}
+
+
+def json_default(value):
+    """Turn the values a config may hold (arrays, paths, tuples) into JSON types."""
+    if hasattr(value, 'tolist'):
+        return value.tolist()
+    if isinstance(value, (Path, tuple)):
+        return str(value) if isinstance(value, Path) else list(value)
+    raise TypeError(f'cannot store {type(value).__name__} in a checkpoint config')
+
+
+def write_file(path: str | Path, tensors: dict, config: dict, save=save_file) -> Path:
+    """
+    Write tensors and config as a checkpoint, atomically (temporary file, then rename).
+
+    ``save`` is safetensors' writer of the tensors' framework (numpy here; torch in
+    ``hybrid_models.checkpoint``), so a kill never leaves half a file.
+    """
+    path = Path(path)
+    meta = {'format': FORMAT, 'config': json.dumps(config, default=json_default)}
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + '.tmp')
+    save(tensors, str(tmp), metadata=meta)
+    os.replace(tmp, path)
+    return path
+
+
+def rewrite_config(path: str | Path, config: dict, out: str | Path | None = None) -> Path:
+    """Write ``path``'s tensors, bit for bit, with a new config to ``out`` (default: in place)."""
+    read_header(path)
+    try:
+        tensors = load_file(str(path))
+    except (SafetensorError, OSError) as exc:
+        raise CheckpointError(f'{path}: damaged hybrid_models checkpoint ({exc})') from None
+    return write_file(out or path, tensors, config)
 
 
 def vessel_of(config: dict, path: str | Path) -> Vessel:

@@ -29,9 +29,11 @@ import hashlib
 import os
 from pathlib import Path
 import sys
+import time
 
 import numpy as np
 
+from hybrid_models.bands import Bands, BandsError
 from hybrid_models.bound import half_width, is_constant, schedule_of, step_bounds
 from hybrid_models.checkpoint_format import CheckpointError, read_model_arrays, vessel_of
 from hybrid_models.hybrid_step import hybrid_step, lstm_layers, lstm_stack, step_weights
@@ -86,6 +88,27 @@ def served_bound(state: dict, model_config: dict,
     return float(relative_threshold), half_width(relative_threshold, out_range)
 
 
+def served_bands(config: dict, spec, relative_threshold) -> tuple[Bands | None, str]:
+    """
+    Return (bands, note): the checkpoint's calibrated bands, or None and why not.
+
+    Bands (``hybrid_models.bands``) are served only at the threshold they were computed at.
+    """
+    stored = config.get('bands')
+    if not stored:
+        return None, ('the checkpoint has no calibrated bands (train it again, or give it '
+                      'bands with set_bands)')
+    try:
+        bands = Bands.from_dict(stored, spec.state_names)
+    except BandsError as exc:
+        return None, str(exc)
+    if not bands.serves(relative_threshold):
+        return None, (f'the calibrated bands hold at relative threshold '
+                      f'{bands.relative_threshold}, not at the served {relative_threshold}')
+    return bands, (f'bands at levels {list(bands.levels)} from '
+                   f'{bands.source.get("forecasts")} validation forecasts')
+
+
 class Forecaster:
     """
     Batched, compiled forecasts of a trained hybrid model.
@@ -109,6 +132,7 @@ class Forecaster:
         self.relative_threshold, self.bound = served_bound(state, model_config,
                                                            relative_threshold)
         self._output_range = np.asarray(state['output_range'], np.float64)
+        self.bands, self.bands_note = served_bands(self.config, spec, self.relative_threshold)
         layers = int(model_config['layers'])
 
         def cast(a):
@@ -229,6 +253,24 @@ class Forecaster:
         hybrid = np.concatenate([np.asarray(h, np.float64) for h, _ in running])
         physics = np.concatenate([np.asarray(p, np.float64) for _, p in running])
         return Forecast(hybrid[:batch], physics[:batch])
+
+    def forecast_each(self, z_window: np.ndarray, c_window: np.ndarray, c_future: np.ndarray,
+                      progress=iter, seconds: list | None = None) -> Forecast:
+        """
+        Forecast B problems, each from its own window (a ``data.Windows``' arrays).
+
+        Shapes (B, W, n_state), (B, W, n_control), (B, H, n_control); ``progress`` wraps
+        the loop over problems (e.g. tqdm); ``seconds`` collects each forecast's time.
+        """
+        hybrid = np.empty(c_future.shape[:2] + (self.spec.n_state,))
+        physics = np.empty_like(hybrid)
+        for i in progress(range(len(c_future))):
+            started = time.perf_counter()
+            out = self.forecast(z_window[i], c_window[i], c_future[i])
+            if seconds is not None:
+                seconds.append(time.perf_counter() - started)
+            hybrid[i], physics[i] = out.hybrid[0], out.physics[0]
+        return Forecast(hybrid, physics)
 
     def _shards(self, padded: int) -> int:
         """Return how many devices a padded batch is split across (it divides evenly)."""

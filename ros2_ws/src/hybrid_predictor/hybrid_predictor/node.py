@@ -56,8 +56,6 @@ from hybrid_predictor.health import Health
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
-    PLAN_CONTROLS,
-    PLAN_FIELDS,
     PlanError,
     PlanLimits,
     bound_hit_fraction,
@@ -135,6 +133,8 @@ class PredictorNode(Node):
         self.topic_map = topic_map_for(self.spec)
         self.horizon = p['horizon'] or self.spec.horizon
         self.limits = PlanLimits.of(self.spec)
+        self.bands = self.engine.bands
+        self.get_logger().info(f'forecast bands: {self.engine.bands_note}')
         self.sim_time = bool(self.get_parameter('use_sim_time').value)
         window = self.engine.window
         check_time_parameters(p)
@@ -356,18 +356,15 @@ class PredictorNode(Node):
         self.forecast_trigger.trigger()
 
     def _on_plan(self, msg: ControlPlan) -> None:
-        if self.limits is None:
-            self._say('no_plans', f'ignoring {self.plan_topic}: {self._no_plans()}')
-            return
         try:
-            fields = check_plan(plan_fields(msg), self.horizon, self.limits, exact=False)
+            matrix = check_plan(*plan_fields(msg), self.horizon, self.limits, exact=False)
         except PlanError as exc:
             with self.count_lock:
                 self.counts['plans_rejected'] += 1
             self._say('plan_rejected', f'rejected {self.plan_topic}: {exc}')
             return
         with self.lock:
-            self.latest_plan = (msg, fields)
+            self.latest_plan = (msg, matrix)
 
     # ------------------------------------------------------------------ forecasting
     def _now(self) -> float:
@@ -421,18 +418,16 @@ class PredictorNode(Node):
     def _future_controls(self, result, plan) -> tuple[np.ndarray, Assumed]:
         """Return the future controls (1, H, n) of the published forecast and what they are."""
         if plan is not None:
-            msg, fields = plan
+            msg, matrix = plan
             age = result.t_end - messages.seconds_from_stamp(msg.header.stamp)
             if 0.0 <= age <= self.p['plan_timeout']:
                 shift = int(round(age / self.spec.dt))
-                try:
-                    return plan_controls({f: v[shift:shift + self.horizon]
-                                          for f, v in fields.items()},
-                                         result.controls[-1], self.horizon,
-                                         self.limits)[None], followed(msg)
-                except PlanError as exc:
-                    self._say('stale_plan', f'ignoring {self.plan_topic} from {age:.1f} s '
-                                            f'before the forecast: {exc}')
+                rows = matrix[shift:shift + self.horizon]
+                if len(rows) == self.horizon:
+                    return plan_controls(rows, result.controls[-1])[None], followed(msg)
+                self._say('stale_plan', f'ignoring {self.plan_topic} from {age:.1f} s '
+                                        f'before the forecast: {len(matrix) - shift} of its '
+                                        f'steps are left, need {self.horizon}')
         return hold_latest(result.controls[-1], self.horizon), Assumed()
 
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
@@ -463,21 +458,34 @@ class PredictorNode(Node):
         north, east, psi = track(hybrid, result.pose, self.spec)   # one pass, all plans
         x_enu, y_enu, _ = frames.position_ned_to_enu(north, east)
         heading = frames.heading_ned_to_enu(psi)
+        names = self.spec.state_names
+        hybrid_flu = frames.states_frd_to_flu(hybrid, names)
+        physics_flu = frames.states_frd_to_flu(physics, names)
+        if self.bands is not None:
+            lower, upper, radius = self.bands.bounds(hybrid)
+            lower, upper = frames.interval_frd_to_flu(lower, upper, names)
         out = []
         for i in range(len(hybrid)):
             msg = Forecast()
             msg.header.stamp = messages.stamp_from_seconds(result.t_end)
             msg.header.frame_id = self.p['world_frame']
+            msg.child_frame_id = self.p['body_frame']
             msg.step_period = float(self.spec.dt)
             msg.horizon = self.horizon
             msg.state_names = list(self.spec.state_names)
             msg.state_units = list(self.spec.state_units)
             msg.vessel = self.spec.name
             msg.control_names = list(self.spec.control_names)
-            msg.hybrid, msg.physics = doubles(hybrid[i]), doubles(physics[i])
+            msg.control_units = list(self.spec.control_units)
+            msg.hybrid, msg.physics = doubles(hybrid_flu[i]), doubles(physics_flu[i])
             msg.residual_bound = doubles(self.engine.bound)
             msg.x, msg.y, msg.heading = doubles(x_enu[i]), doubles(y_enu[i]), doubles(
                 heading[i])
+            msg.band_note = self.engine.bands_note
+            if self.bands is not None:
+                msg.band_levels = list(self.bands.levels)
+                msg.band_lower, msg.band_upper = doubles(lower[i]), doubles(upper[i])
+                msg.band_position_radius = doubles(radius)
             msg.model_id = self.engine.model_id
             msg.controls_assumed = assumed[i].controls
             msg.plan_id = assumed[i].plan_id
@@ -504,11 +512,6 @@ class PredictorNode(Node):
             pose.pose.orientation.w = math.cos(yaw / 2)
             path.poses.append(pose)
         return path
-
-    def _no_plans(self) -> str:
-        return (f'control plans give {list(PLAN_CONTROLS)}; vessel {self.spec.name!r} has '
-                f'controls {list(self.spec.control_names)}, so only forecasts that hold the '
-                f'latest controls are made')
 
     def _on_predict(self, request, response):
         # Admission first, then a counter under a lock of its own: a "busy" answer never
@@ -540,19 +543,16 @@ class PredictorNode(Node):
         """Return (success, message, forecasts) for a request's plans."""
         if not 1 <= len(plans) <= self.p['max_plans']:
             return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', []
-        if self.limits is None:
-            return False, self._no_plans(), []
         try:   # every plan, as a whole, before any window or model work
-            fields = [check_plan(plan_fields(plan), self.horizon, self.limits, index=i)
-                      for i, plan in enumerate(plans)]
+            matrices = [check_plan(*plan_fields(plan), self.horizon, self.limits, index=i)
+                        for i, plan in enumerate(plans)]
         except PlanError as exc:
             return False, str(exc), []
         with self.lock:
             result = self._window()
         if not result.ready:
             return False, f'no forecast: {result.reason}', []
-        future = np.stack([plan_controls(f, result.controls[-1], self.horizon, self.limits,
-                                         index=i) for i, f in enumerate(fields)])
+        future = np.stack([plan_controls(m, result.controls[-1]) for m in matrices])
         with self.batch_lock:
             forecast = self.engine.forecast(result.states, result.controls, future)
         out = self._forecast_messages(result, forecast.hybrid, forecast.physics,
@@ -618,9 +618,9 @@ def doubles(values) -> array:
     return out
 
 
-def plan_fields(plan: ControlPlan) -> dict:
-    """Return a ControlPlan's fields as arrays, by field name."""
-    return {f: np.asarray(getattr(plan, f)) for f in PLAN_FIELDS}
+def plan_fields(plan: ControlPlan) -> tuple[list, list, np.ndarray]:
+    """Return a ControlPlan's column names, units and values (``plans.check_plan``'s)."""
+    return list(plan.control_names), list(plan.control_units), np.asarray(plan.values)
 
 
 def followed(plan: ControlPlan) -> Assumed:

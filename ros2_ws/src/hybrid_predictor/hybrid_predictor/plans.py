@@ -1,32 +1,36 @@
 """
-Control plans for a forecast: validation and the model's future-control matrix (no ROS).
+Control plans for a forecast, in the vessel's own controls: checks and the model's matrix.
 
-A forecast needs one control vector per step, c = [n, delta_port, delta_stbd,
-wind_speed, wind_dir_cos, wind_dir_sin] (docs/conventions.md). Controllers give the
-actuator set-points; the wind is either given too or held at its latest measurement.
-Plans are checked before they reach the model against what the vessel file declares:
-a wrong length, a non-finite value, a set-point outside its actuator's ``range`` or a
-wind speed outside ``limits.wind_speed`` is refused with a reason.
+A plan names its columns with the vessel's control names (``Vessel.control_names``:
+the actuators, then the environment columns, e.g. ``n, delta_port, delta_stbd,
+wind_speed, wind_dir_cos, wind_dir_sin`` for the patrol boat or ``n, delta`` for the
+KVLCC2 model), gives each column's unit, and holds a matrix of steps x controls. Every
+actuator is planned; an environment input (wind) is planned with all its columns or
+left out, and then its latest measurement holds. Plans are checked as a whole before
+they reach the model against what the vessel file declares: names, units (exactly the
+vessel's), a whole number of rows, finite values, each actuator's ``range``, the
+``limits`` of an environment column (``wind_speed``; a vessel that declares none takes
+plans without wind only) and unit direction vectors. Refusals are one line. No ROS.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 import math
 
 import numpy as np
 
 from hybrid_models.metrics import dead_reckoning
+from vessel_description.vocabulary import (
+    ENVIRONMENT,
+    ENVIRONMENT_DIRECTIONS,
+    LIMITED_ENVIRONMENT,
+)
 
-ACTUATOR_FIELDS = ('shaft_speed', 'rudder_port', 'rudder_stbd')
-WIND_FIELDS = ('wind_speed', 'wind_direction')
-PLAN_FIELDS = ACTUATOR_FIELDS + WIND_FIELDS
-# The vessel controls a ControlPlan message gives (its fields are the patrol boat's),
-# and the vessel quantity whose declared range bounds each field.
-PLAN_CONTROLS = ('n', 'delta_port', 'delta_stbd', 'wind_speed', 'wind_dir_cos',
-                 'wind_dir_sin')
-FIELD_QUANTITY = {'shaft_speed': 'n', 'rudder_port': 'delta_port',
-                  'rudder_stbd': 'delta_stbd', 'wind_speed': 'wind_speed'}
+# |cos^2 + sin^2 - 1| a planned direction may have (float rounding of cos and sin of
+# one angle is ~1e-16; a pair off by more is not a direction).
+DIRECTION_TOLERANCE = 1e-6
 
 
 class PlanError(ValueError):
@@ -36,108 +40,141 @@ class PlanError(ValueError):
 @dataclass(frozen=True)
 class PlanLimits:
     """
-    Declared ranges of the plan fields: field -> (low, high, unit), or None if undeclared.
+    What a plan for one vessel must satisfy (from its vessel file, ``PlanLimits.of``).
 
-    ``wind_direction`` is an angle (rad, relative to the bow): any finite value is one.
+    ``names`` and ``units`` are the vessel's control vector; ``ranges`` maps a control
+    to (low, high), or to None when a plan may not give it (no declared range);
+    ``actuators`` must be planned; each of ``groups`` (an environment input's columns)
+    is planned whole or not at all; each of ``directions`` is a (cos, sin) pair.
     """
 
     vessel: str
+    names: tuple[str, ...]
+    units: tuple[str, ...]
     ranges: dict
+    actuators: tuple[str, ...]
+    groups: tuple[tuple[str, ...], ...] = ()
+    directions: tuple[tuple[str, str], ...] = ()
 
     @classmethod
-    def of(cls, vessel) -> PlanLimits | None:
-        """Return a vessel's plan limits, or None if its controls are not the plan's."""
-        if vessel.control_names != PLAN_CONTROLS:
-            return None
-        ranges = {}
-        for field, quantity in FIELD_QUANTITY.items():
-            if quantity in vessel.actuator_names:
-                actuator = vessel.actuator(quantity)
-                ranges[field] = (actuator.low, actuator.high, actuator.unit)
-            elif quantity in vessel.limits:
-                ranges[field] = (*vessel.limits[quantity], 'm/s')
-            else:
-                ranges[field] = None
-        return cls(vessel.name, ranges)
+    def of(cls, vessel) -> PlanLimits:
+        """Return the plan limits of a vessel description (any vessel)."""
+        ranges = {a.name: (a.low, a.high) for a in vessel.actuators}
+        groups, directions = [], []
+        for env in vessel.environment:
+            columns = tuple(c[0] for c in ENVIRONMENT[env])
+            groups.append(columns)
+            pair = ENVIRONMENT_DIRECTIONS.get(env)
+            if pair:
+                directions.append(pair)
+            for column in columns:
+                if column in LIMITED_ENVIRONMENT.get(env, ()):
+                    ranges[column] = vessel.limits.get(column)
+                else:   # a direction component
+                    ranges[column] = (-1.0, 1.0)
+        return cls(vessel.name, tuple(vessel.control_names), tuple(vessel.control_units),
+                   ranges, tuple(vessel.actuator_names), tuple(groups), tuple(directions))
+
+    def describe(self) -> str:
+        """Return the plan columns this vessel takes, with units, for messages."""
+        return ', '.join(f'{n} [{u}]' for n, u in zip(self.names, self.units, strict=True))
 
 
 def hold_latest(latest_control: np.ndarray, horizon: int) -> np.ndarray:
-    """Return the future controls (1, horizon, 6) that keep the latest controls."""
+    """Return the future controls (1, horizon, n_control) that keep the latest controls."""
     return np.broadcast_to(latest_control, (1, horizon, latest_control.shape[-1])).copy()
 
 
-def check_plan(plan: dict[str, np.ndarray], horizon: int, limits: PlanLimits,
-               index: int = 0, exact: bool = True) -> dict[str, np.ndarray]:
+def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
+               limits: PlanLimits, index: int = 0, exact: bool = True) -> np.ndarray:
     """
-    Validate a whole plan before any array work; return its fields as float arrays.
+    Validate a whole plan before any array work; return its (steps, n_control) matrix.
 
-    ``plan`` maps the field names of hybrid_predictor_interfaces/ControlPlan to arrays.
-    The actuator fields must all have the same length: exactly ``horizon`` entries
-    (``exact``), or at least ``horizon`` (a plan on the topic, which may start before
-    the forecast does). The wind fields are given together with that length or both
-    left empty (documented default: the latest measured wind holds). Every value must
-    be finite, and inside its declared range (``limits``); a wind speed is >= 0 on any
-    vessel. Raise PlanError.
+    ``names`` and ``units`` label the columns of ``values`` (row-major steps x columns,
+    flat or 2-D), as ``hybrid_predictor_interfaces/ControlPlan`` carries them. The
+    matrix is returned in the vessel's control order, NaN in the columns of an
+    environment input left out. Rows: exactly ``horizon`` (``exact``) or at least that
+    many (a plan on the topic, which may start before the forecast does). Raise
+    PlanError with one line naming the plan (``index``) and what is wrong.
     """
     where = f'plan {index}'
-    arrays = {}
-    for name in ACTUATOR_FIELDS + WIND_FIELDS:
-        try:
-            arrays[name] = np.asarray(plan.get(name, ()), dtype=float).reshape(-1)
-        except (TypeError, ValueError):
-            raise PlanError(f'{where}: {name} is not a sequence of numbers') from None
-    length = len(arrays[ACTUATOR_FIELDS[0]])
-    if length != horizon if exact else length < horizon:
+    names, units = [str(n) for n in names], [str(u) for u in units]
+    if not names:
+        raise PlanError(f'{where}: no control_names; vessel {limits.vessel!r} takes '
+                        f'{limits.describe()}')
+    unknown = [n for n in names if n not in limits.names]
+    if unknown:
+        raise PlanError(f'{where}: {unknown} not among the controls of vessel '
+                        f'{limits.vessel!r}: {limits.describe()}')
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise PlanError(f'{where}: {repeated} given more than once')
+    missing = [n for n in limits.actuators if n not in names]
+    if missing:
+        raise PlanError(f'{where}: actuators {missing} missing; every plan of vessel '
+                        f'{limits.vessel!r} gives {list(limits.actuators)}')
+    for group in limits.groups:
+        given = [n for n in group if n in names]
+        if given and len(given) != len(group):
+            raise PlanError(f'{where}: give {list(group)} together, or none of them (the '
+                            f'latest measurement then holds); got only {given}')
+    if len(units) != len(names):
+        raise PlanError(f'{where}: {len(units)} control_units for {len(names)} '
+                        f'control_names; give one unit per control')
+    for name, unit in zip(names, units, strict=True):
+        declared = limits.units[limits.names.index(name)]
+        if unit != declared:
+            raise PlanError(f'{where}: {name} in {unit!r}; vessel {limits.vessel!r} '
+                            f'declares it in {declared!r}')
+    try:
+        flat = np.asarray(values, dtype=float).reshape(-1)
+    except (TypeError, ValueError):
+        raise PlanError(f'{where}: values is not a sequence of numbers') from None
+    if len(flat) % len(names):
+        raise PlanError(f'{where}: {len(flat)} values are not whole rows of '
+                        f'{len(names)} controls')
+    rows = flat.reshape(-1, len(names))
+    steps = len(rows)
+    if steps != horizon if exact else steps < horizon:
         need = horizon if exact else f'at least {horizon}'
-        raise PlanError(f'{where}: {ACTUATOR_FIELDS[0]} has {length} entries, need {need}')
-    wind = [len(arrays[name]) for name in WIND_FIELDS]
-    if wind != [0, 0] and wind != [length, length]:
-        raise PlanError(f'{where}: {WIND_FIELDS[0]} has {wind[0]} entries and '
-                        f'{WIND_FIELDS[1]} {wind[1]}; give both with {length} entries '
-                        f'each, or neither (the latest measured wind then holds)')
-    for name, values in arrays.items():
-        if len(values) != length and name in ACTUATOR_FIELDS:
-            raise PlanError(f'{where}: {name} has {len(values)} entries, need {length} '
-                            f'(as {ACTUATOR_FIELDS[0]})')
-        bad = np.flatnonzero(~np.isfinite(values))
-        if len(bad):
-            raise PlanError(f'{where}: {name}[{bad[0]}] is {values[bad[0]]}')
-    if np.any(arrays['wind_speed'] < 0):
-        raise PlanError(f'{where}: wind_speed must be >= 0')
-    for name, declared in limits.ranges.items():
-        values = arrays[name]
-        if not len(values):
-            continue
+        raise PlanError(f'{where}: {steps} steps of {len(names)} controls, need {need}')
+    bad = np.argwhere(~np.isfinite(rows))
+    if len(bad):
+        k, j = bad[0]
+        raise PlanError(f'{where}: {names[j]}[{k}] is {rows[k, j]}')
+    for j, name in enumerate(names):
+        declared = limits.ranges[name]
         if declared is None:
             raise PlanError(f'{where}: vessel {limits.vessel!r} declares no range for '
-                            f'{name} (limits.{FIELD_QUANTITY[name]} in its vessel file); '
-                            f'leave it out')
-        low, high, unit = declared
-        bad = np.flatnonzero((values < low) | (values > high))
-        if len(bad):
-            raise PlanError(f'{where}: {name}[{bad[0]}] = {values[bad[0]]:.6g} outside '
-                            f'[{low:.6g}, {high:.6g}] {unit}')
-    return arrays
+                            f'{name} (limits.{name} in its vessel file); leave it out')
+        low, high = declared
+        out = np.flatnonzero((rows[:, j] < low) | (rows[:, j] > high))
+        if len(out):
+            k = out[0]
+            raise PlanError(f'{where}: {name}[{k}] = {rows[k, j]:.6g} outside '
+                            f'[{low:.6g}, {high:.6g}] {units[j]}')
+    matrix = np.full((steps, len(limits.names)), np.nan)
+    matrix[:, [limits.names.index(n) for n in names]] = rows
+    for cos_name, sin_name in limits.directions:
+        if cos_name in names:
+            c = matrix[:, limits.names.index(cos_name)]
+            s = matrix[:, limits.names.index(sin_name)]
+            off = np.flatnonzero(np.abs(c * c + s * s - 1.0) > DIRECTION_TOLERANCE)
+            if len(off):
+                k = off[0]
+                raise PlanError(f'{where}: ({cos_name}, {sin_name})[{k}] = ({c[k]:.6g}, '
+                                f'{s[k]:.6g}) is not a unit direction')
+    return matrix
 
 
-def plan_controls(plan: dict[str, np.ndarray], latest_control: np.ndarray, horizon: int,
-                  limits: PlanLimits, index: int = 0) -> np.ndarray:
+def plan_controls(matrix: np.ndarray, latest_control: np.ndarray) -> np.ndarray:
     """
-    Return one plan's future controls (horizon, 6), or raise PlanError.
+    Return a checked plan's future controls (steps, n_control) for the model.
 
-    The plan is validated as a whole first (``check_plan`` with exactly ``horizon``
-    entries); only a valid plan is turned into the model's control matrix.
+    ``matrix`` is ``check_plan``'s (or rows of it); the columns it leaves out (NaN: an
+    environment input not planned) hold ``latest_control``, the latest measured controls.
     """
-    arrays = check_plan(plan, horizon, limits, index)
-    out = np.empty((horizon, 6))
-    out[:, 0], out[:, 1], out[:, 2] = (arrays[n] for n in ACTUATOR_FIELDS)
-    if len(arrays['wind_speed']):
-        out[:, 3] = arrays['wind_speed']
-        out[:, 4] = np.cos(arrays['wind_direction'])
-        out[:, 5] = np.sin(arrays['wind_direction'])
-    else:
-        out[:, 3:] = latest_control[3:]
-    return out
+    return np.where(np.isnan(matrix), latest_control, matrix)
 
 
 def track(states: np.ndarray, pose: tuple[float, float, float], spec,

@@ -28,6 +28,7 @@ def predictor(context, *_args) -> list[Node]:
     """Return the predictor node; an empty relative_threshold leaves the model's own."""
     parameters = node_parameters(PACKAGE, CONFIG, ARGUMENTS, context)
     parameters['world_frame'] = prefixed_frame('odom')
+    parameters['body_frame'] = prefixed_frame('base_link')
     return [Node(package=PACKAGE, executable='predictor',
                  namespace=LaunchConfiguration('namespace'), parameters=[parameters],
                  output='screen')]

@@ -81,7 +81,9 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
     import rclpy
     from sensor_msgs.msg import JointState
 
+    from hybrid_predictor.plan_message import control_plan
     from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
+    from vessel_description import load_vessel
     from vessel_ros_bridge import messages as m
     from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
@@ -119,10 +121,8 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
             next_kept[0] = t + every
 
     if plan is not None:
-        plan_message = ControlPlan(shaft_speed=plan[:, 0].tolist(),
-                                   rudder_port=plan[:, 1].tolist(),
-                                   rudder_stbd=plan[:, 2].tolist())
-        plan_message.header.stamp = m.stamp_from_seconds(START)
+        plan_message = control_plan(load_vessel('patrol_boat'), plan,
+                                    stamp=m.stamp_from_seconds(START))
     node.create_subscription(Odometry, m.ODOM_TRUE_TOPIC, on_truth, 100)
     node.create_subscription(Forecast, 'forecast', on_forecast, 10)
     ready = []
@@ -150,6 +150,13 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
     return truth, forecasts
 
 
+def model_states(values, msg) -> np.ndarray:
+    """Return a Forecast's states (horizon, n) in the model's FRD, as the truth is read."""
+    from vessel_physics.frames import states_flu_to_frd
+
+    return states_flu_to_frd(np.reshape(values, (msg.horizon, len(STATES))), msg.state_names)
+
+
 def evaluate(truth, forecasts):
     """Compare every matured forecast with the truth; return the figures and the pairs."""
     pairs = []
@@ -157,7 +164,7 @@ def evaluate(truth, forecasts):
         steps = range(t0 + 1, t0 + 1 + msg.horizon)
         if not all(k in truth for k in steps):
             continue   # not matured yet, or truth samples missing
-        predicted = np.reshape(msg.hybrid, (msg.horizon, len(STATES)))
+        predicted = model_states(msg.hybrid, msg)
         actual = np.array([truth[k][0] for k in steps])
         true_track = np.array([truth[k][1:] for k in steps])
         track_error = np.hypot(np.asarray(msg.x) - true_track[:, 0],
@@ -193,7 +200,7 @@ def plot(pair, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     t0, msg, predicted, actual, _, true_track = pair
-    physics = np.reshape(msg.physics, predicted.shape)
+    physics = model_states(msg.physics, msg)
     bound = np.asarray(msg.residual_bound)
     minutes = np.arange(1, msg.horizon + 1) / 60.0
     fig = plt.figure(figsize=(13, 8), constrained_layout=True)

@@ -56,6 +56,8 @@ ENVIRONMENT_MIRROR: dict[str, float] = {'wind_speed': 1.0, 'wind_dir_cos': 1.0,
 # Environment columns a vessel file may give a plausible range in ``limits`` (the
 # direction is an angle: any finite value is one).
 LIMITED_ENVIRONMENT: dict[str, tuple[str, ...]] = {'wind': ('wind_speed',)}
+# Environment columns that are the (cos, sin) of one direction: a unit vector.
+ENVIRONMENT_DIRECTIONS: dict[str, tuple[str, str]] = {'wind': ('wind_dir_cos', 'wind_dir_sin')}
 
 # Where a vessel's recordings come from: ``open`` water (wind, waves and currents can act)
 # or a ``basin`` (towing tank, model basin: still water, no current).

@@ -69,6 +69,40 @@ def twist_flu_to_frd(vx, vy, wx, wz):
     return vx, -vy, wx, -wz
 
 
+def state_signs_frd_to_flu(state_names) -> np.ndarray:
+    """
+    Return the sign of each model state (u, v, p, r, phi) going from FRD to FLU.
+
+    Velocities and rates follow ``twist_frd_to_flu``; roll phi is the same angle in
+    both frames. The map is its own inverse, so the same signs take FLU back to FRD.
+    """
+    u, v, p, r = twist_frd_to_flu(1.0, 1.0, 1.0, 1.0)
+    signs = {'u': u, 'v': v, 'p': p, 'r': r, 'phi': 1.0}
+    return np.array([signs[name] for name in state_names])
+
+
+def states_frd_to_flu(z, state_names) -> np.ndarray:
+    """Return model states z (..., n_state), FRD, in FLU (REP-103 ``base_link``)."""
+    return np.asarray(z, dtype=float) * state_signs_frd_to_flu(state_names)
+
+
+def states_flu_to_frd(z, state_names) -> np.ndarray:
+    """Return states z (..., n_state) given in FLU in the model's FRD."""
+    return np.asarray(z, dtype=float) * state_signs_frd_to_flu(state_names)
+
+
+def interval_frd_to_flu(lower, upper, state_names) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return an interval of states [lower, upper] (..., n_state), FRD, in FLU.
+
+    A state whose sign changes swaps its ends, so lower <= upper still holds.
+    """
+    signs = state_signs_frd_to_flu(state_names)
+    a = np.asarray(lower, dtype=float) * signs
+    b = np.asarray(upper, dtype=float) * signs
+    return np.minimum(a, b), np.maximum(a, b)
+
+
 def quaternion_from_euler(roll, pitch, yaw):
     """Return (x, y, z, w) of R = Rz(yaw) Ry(pitch) Rx(roll) (any consistent frame pair)."""
     cr, sr = np.cos(0.5 * np.asarray(roll)), np.sin(0.5 * np.asarray(roll))

@@ -17,12 +17,12 @@ import argparse
 import json
 from pathlib import Path
 import sys
-import time
 
 import numpy as np
-from tqdm import tqdm
 
+from hybrid_models.bands import coverage
 from hybrid_models.checkpoint_format import CheckpointError, read_header, vessel_of
+from hybrid_models.cli.arguments import progress
 from hybrid_models.cli.arguments import threshold as threshold_value
 from hybrid_models.data import dataset_hash, evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
@@ -54,19 +54,18 @@ def evaluate(engine: Forecaster, physics: Forecaster, dataset, horizon: int,
     """Forecast the test split with the engine and the physics alone; return metrics."""
     runs = load_runs(dataset, 'test', engine.spec)
     windows = forecast_windows(runs, engine.window, horizon, stride, target='true')
-    predictions = np.empty(windows.z_target.shape)
-    physics_alone = np.empty(windows.z_target.shape)
+    problems = (windows.z_window, windows.c_window, windows.c_future)
     seconds = []
-    for i in tqdm(range(len(windows)), desc='test forecasts', file=sys.stderr):
-        started = time.perf_counter()
-        predictions[i] = engine.forecast(windows.z_window[i], windows.c_window[i],
-                                         windows.c_future[i]).hybrid[0]
-        seconds.append(time.perf_counter() - started)
-        physics_alone[i] = physics.forecast(windows.z_window[i], windows.c_window[i],
-                                            windows.c_future[i]).hybrid[0]
+    predictions = engine.forecast_each(*problems, progress=progress('test forecasts'),
+                                       seconds=seconds).hybrid
+    physics_alone = physics.forecast_each(*problems, progress=progress('physics alone')
+                                          ).hybrid
     metrics = forecast_metrics(predictions, windows.z_target, engine.spec)
     metrics['physics_alone'] = forecast_metrics(physics_alone, windows.z_target, engine.spec)
     metrics['latency_ms_p50'] = float(np.median(seconds) * 1e3)
+    if engine.bands is not None:   # the bands promise the measured states: judged on them
+        measured = forecast_windows(runs, engine.window, horizon, stride).z_target
+        metrics['bands'] = coverage(engine.bands, predictions, measured, engine.spec)
     metrics['test_runs'] = len(runs)
     metrics['stride'] = stride
     return metrics
@@ -86,7 +85,41 @@ def profile_lines(spec, metrics: dict) -> list[str]:
 
 
 def _pair(hybrid, physics) -> str:
-    return f'{hybrid:.4g} ({physics:.4g})'
+    return f'{_figure(hybrid)} ({_figure(physics)})'
+
+
+def _figure(value) -> str:
+    """Return a metric for a table; None (a diverged forecast) as 'diverged'."""
+    return 'diverged' if value is None else f'{value:.4g}'
+
+
+def band_lines(engine: Forecaster, metrics: dict) -> list[str]:
+    """Return the calibrated bands at the reported steps and their coverage on the test runs."""
+    bands, cover = engine.bands, metrics.get('bands')
+    if bands is None or cover is None:
+        return [f'None served: {engine.bands_note}.']
+    spec, steps = engine.spec, cover['steps']
+    lower, upper, position = bands.at(max(steps))
+    source = bands.source
+    lines = [f"From {source.get('forecasts')} forecasts of {source.get('runs')} validation "
+             f"runs (one every {source.get('stride')} samples) against the measured states, "
+             f'at threshold {bands.relative_threshold}; published with every forecast '
+             '(docs/predictor.md). Width of each band (upper - lower; position: radius) and, '
+             'in brackets, the fraction of the test forecasts above whose measured states '
+             'it held:', '',
+             '| level | after [s] | position [m] | '
+             + ' | '.join(f'{s} [{u}]' for s, u in zip(spec.state_names, spec.state_units,
+                                                     strict=True)) + ' |',
+             '|' + '---|' * (3 + spec.n_state)]
+    for li, level in enumerate(bands.levels):
+        for si, step in enumerate(steps):
+            cells = [f'{level:g}', f'{step * spec.dt:g}',
+                     f"{position[li, step - 1]:.4g} ({cover['position'][li][si]:.2f})"]
+            cells += [f"{upper[li, step - 1, i] - lower[li, step - 1, i]:.4g} "
+                      f"({cover['states'][name][li][si]:.2f})"
+                      for i, name in enumerate(spec.state_names)]
+            lines.append('| ' + ' | '.join(cells) + ' |')
+    return lines
 
 
 def selection_lines(config: dict) -> list[str]:
@@ -163,6 +196,10 @@ def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
         '## Along the horizon (test runs): the hybrid, and in brackets its physics alone',
         '',
         *profile_lines(engine.spec, metrics),
+        '',
+        '## Calibrated forecast bands',
+        '',
+        *band_lines(engine, metrics),
         '',
         '## The served threshold',
         '',

@@ -90,6 +90,10 @@ DEFAULTS: dict = {
         'selection': {'do_no_harm': True,
                       'thresholds': [0.0, 0.01, 0.025, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5, 1.0],
                       'confidence': 0.95},
+        # Calibrated forecast bands (hybrid_models.bands) of the served hybrid, from its
+        # forecasts of the validation runs (one every `stride` samples; null: the
+        # validation horizon / 30), stored in the checkpoint; levels [] computes none.
+        'bands': {'levels': [0.5, 0.9], 'stride': None},
     },
     # None: the vessel's horizon; stride horizon/7.5 (120 s of the paper's 900 s)
     'evaluation': {'horizon': None, 'stride': None, 'target': 'true',
@@ -146,6 +150,8 @@ def fill_from_vessel(cfg: dict, vessel) -> dict:
         vessel, t['window'], e['horizon'], e['stride'])
     _, v['horizon'], _ = evaluation_protocol(vessel, t['window'], v['horizon'], 1)
     v['stride'] = int(v['stride'] if v['stride'] is not None else max(1, v['horizon'] // 3))
+    b = t['bands']
+    b['stride'] = int(b['stride'] if b['stride'] is not None else max(1, v['horizon'] // 30))
     return out
 
 

@@ -135,11 +135,19 @@ class RecurrentTask(Task):
         return alone
 
     @torch.no_grad()
-    def validation_forecasts(self, model: nn.Module) -> tuple[np.ndarray, ...]:
-        """Return (forecasts, targets, run index) of this rank's validation windows."""
+    def validation_forecasts(self, model: nn.Module, stride: int | None = None
+                             ) -> tuple[np.ndarray, ...]:
+        """
+        Return (forecasts, targets, run index) of this rank's validation windows.
+
+        ``stride``: one forecast every this many samples of each run instead of the
+        validation stride.
+        """
         horizon = self.cfg['validation']['horizon']
+        index = self.val_index if stride is None else window_index(
+            [forecast_starts(r.length, self.cfg['window'], horizon, stride) for r in self.val])
         preds, targets, runs = [], [], []
-        for ri, t0 in self._my_chunks(*self.val_index):
+        for ri, t0 in self._my_chunks(*index):
             w = gather_windows(self.val, ri, t0, self.cfg['window'], horizon)
             preds.append(predict(model, w))
             targets.append(w.z_target)

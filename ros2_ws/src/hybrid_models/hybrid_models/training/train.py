@@ -23,6 +23,7 @@ import numpy as np
 import torch
 import yaml
 
+from hybrid_models.bands import BandsError, calibrate
 from hybrid_models.bound import output_range
 from hybrid_models.checkpoint import load_checkpoint, save_checkpoint
 from hybrid_models.data import dataset_hash, forecast_windows, load_runs
@@ -208,6 +209,8 @@ def _train_cached(cfg, spec, ds, out_dir, resume, group, cache, t_start) -> dict
         base['selection'] = select_threshold(model, task.alone(), tcfg, state.best_epoch)
         base['bound'].update(relative_threshold=model.relative_threshold,
                              half_width=model.bound.tolist())
+    if isinstance(model, HybridModel):
+        base['bands'] = calibrate_bands(model, task.alone(), tcfg)
     summary = {**checkpoint_config(), 'val': best.config.get('val'),
                'best_epoch': state.best_epoch, 'epochs': state.epoch,
                'bad_steps': state.bad_steps, 'rollbacks': state.rollbacks,
@@ -250,6 +253,28 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
     kept = {k: v for k, v in physics.items() if k != 'per_forecast'}
     return {**choice, 'cap': cap, 'grid': grid, 'physics': kept,
             'best_epoch': best_epoch}
+
+
+def calibrate_bands(model: HybridModel, task: RecurrentTask, tcfg: dict) -> dict | None:
+    """
+    Return the served hybrid's forecast bands (``hybrid_models.bands``) as a config entry.
+
+    From its forecasts of every validation run at the served threshold; None (said on
+    stderr) when the config asks for none or the validation runs cannot give them.
+    """
+    levels, stride = tcfg['bands']['levels'], tcfg['bands']['stride']
+    if not levels:
+        return None
+    pred, true, runs = task.validation_forecasts(model, stride)
+    try:
+        bands = calibrate(pred, true, model.spec, model.relative_threshold, levels, source={
+            'split': 'val', 'runs': int(len(np.unique(runs))), 'stride': int(stride),
+            'target': 'measured'})
+    except BandsError as exc:
+        print(f'no forecast bands: {exc}', file=sys.stderr)
+        return None
+    print(f'forecast bands from {len(pred)} validation forecasts', file=sys.stderr)
+    return bands.to_dict()
 
 
 def _fit_qlag(cfg, spec, train_runs, val_runs, state_norm):
