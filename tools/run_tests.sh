@@ -12,11 +12,25 @@ tail -n 1 <<<"$report"
 
 # A DDS domain of its own for this test session, so parallel sessions never cross.
 export ROS_DOMAIN_ID="${TEST_ROS_DOMAIN_ID:-$((110 + $$ % 100))}"
+pytest_run() {
+  python -m pytest "$@"
+  local rc=$?
+  if [ "$rc" -eq 5 ]; then
+    echo 'run_tests: error: pytest collected no tests; a suite that runs nothing does not pass' >&2
+    return 1
+  fi
+  return "$rc"
+}
+
 echo "== pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVERY_RANGE)"
-python -m pytest "$@"
-rc=$?
-if [ "$rc" -eq 5 ]; then
-  echo 'run_tests: error: pytest collected no tests; a suite that runs nothing does not pass' >&2
-  exit 1
-fi
-exit "$rc"
+# Arguments (focused files, -m slow, ...) run as given, in one process.
+[ "$#" -gt 0 ] && { pytest_run "$@"; exit $?; }
+# The whole default suite: the unit tests are CPU-bound numerics with no clock in their
+# verdicts, so they share the cores (one process per core, a test file per process);
+# the integration tests time a live ROS graph and run alone after them.
+workers="$(python -c 'import os; print(max(1, min(len(os.sched_getaffinity(0)), 4)))')"
+pytest_run tests/unit -n "$workers" --dist loadfile
+unit=$?
+pytest_run tests/integration
+integration=$?
+[ "$unit" -eq 0 ] && [ "$integration" -eq 0 ]
