@@ -31,11 +31,17 @@ class LiveFeeder:
     """Publish a window of history at once, then live samples at RATE_HZ (wall clock)."""
 
     def __init__(self, graph: Graph):
-        from rclpy.qos import qos_profile_sensor_data
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-        # Best effort, as many sensor drivers publish: the predictor must hear it.
-        self.feeder = Feeder(graph.node, qos=qos_profile_sensor_data)
+        # Best effort, as many sensor drivers publish: the predictor must hear it. Deep
+        # enough to hold the history sent at once (sensor data's depth 5 drops most).
+        self.feeder = Feeder(graph.node, qos=QoSProfile(
+            depth=200, reliability=ReliabilityPolicy.BEST_EFFORT))
         self.running = True
+        # A sample sent before its new publisher has matched the predictor is lost:
+        # without the history, the window would take a minute of live samples to fill.
+        publishers = (self.feeder.odom, self.feeder.act, self.feeder.wind)
+        assert wait_for(lambda: all(p.get_subscription_count() for p in publishers), 10)
         now = time.time()
         for k in range(int(WINDOW_S) + 5):
             self.feeder.sample(now - WINDOW_S - 5 + k)
@@ -59,7 +65,7 @@ def fed(tmp_path_factory):
             predictor.output()[-3000:]
         time.sleep(1.0)   # let discovery settle before the history burst
         graph.feeder = LiveFeeder(graph)
-        assert wait_for(lambda: graph.forecasts, 30), predictor.output()[-3000:]
+        assert wait_for(lambda: graph.forecasts, 30), (graph.values(), predictor.output()[-3000:])
         yield graph, predictor
     finally:
         graph.close()
