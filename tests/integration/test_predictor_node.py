@@ -241,7 +241,7 @@ def test_an_incomplete_window_gives_a_clear_status_and_no_forecast(launcher, ros
 class Feeder:
     """Publish the predictor's inputs from the test, stamped on the wall clock."""
 
-    def __init__(self, node, namespace: str | None = None, qos=200):
+    def __init__(self, node, namespace: str | None = None):
         from geometry_msgs.msg import Vector3Stamped
         from nav_msgs.msg import Odometry
         from sensor_msgs.msg import JointState
@@ -252,9 +252,9 @@ class Feeder:
         NS = namespace or DEFAULT_NAMESPACE  # noqa: N806 - the namespace, as a constant
         self.m = m
         # The test's node is in the root namespace: the nodes' relative names, made absolute.
-        self.odom = node.create_publisher(Odometry, f'{NS}/{m.ODOM_TOPIC}', qos)
-        self.act = node.create_publisher(JointState, f'{NS}/{m.ACTUATORS_TOPIC}', qos)
-        self.wind = node.create_publisher(Vector3Stamped, f'{NS}/{m.WIND_TOPIC}', qos)
+        self.odom = node.create_publisher(Odometry, f'{NS}/{m.ODOM_TOPIC}', 200)
+        self.act = node.create_publisher(JointState, f'{NS}/{m.ACTUATORS_TOPIC}', 200)
+        self.wind = node.create_publisher(Vector3Stamped, f'{NS}/{m.WIND_TOPIC}', 200)
 
     def sample(self, t):
         m, stamp = self.m, self.m.stamp_from_seconds(t)
