@@ -60,9 +60,7 @@ def fed(tmp_path_factory):
             predictor.output()[-3000:]
         time.sleep(1.0)   # let discovery settle before the history burst
         graph.feeder = LiveFeeder(graph)
-        # Best-effort inputs (the default) are not re-sent when lost: a history sent at
-        # once may arrive with holes, and the window then fills from live samples.
-        assert wait_for(lambda: graph.forecasts, WINDOW_S + 15), (
+        assert wait_for(lambda: graph.forecasts, 30), (
             graph.values(), predictor.output()[-3000:])
         yield graph, predictor
     finally:
@@ -259,11 +257,9 @@ import sys, time
 import rclpy
 from nav_msgs.msg import Odometry
 from vessel_ros_bridge import messages as m
-from rclpy.qos import qos_profile_sensor_data
 rclpy.init()
 node = rclpy.create_node('burst')
-# Best effort, as sensor drivers publish: only a best-effort subscription hears it.
-pub = node.create_publisher(Odometry, '/vessel/' + m.ODOM_TOPIC, qos_profile_sensor_data)
+pub = node.create_publisher(Odometry, '/vessel/' + m.ODOM_TOPIC, 200)
 while pub.get_subscription_count() == 0:
     time.sleep(0.05)
 old = m.odometry_from_state(dict(u=6.0, v=0.0, p=0.0, r=0.0, phi=0.0, psi=0.0, x=0.0, y=0.0),
