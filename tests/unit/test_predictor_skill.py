@@ -63,7 +63,7 @@ def run(skill, t_from, t_to, offset=0.0, seed=0, x=0.0, control=5.0, applied=Non
 def test_noise_inside_the_band_raises_nothing_and_is_scored():
     skill = tracker()
     raised = []
-    run(skill, 0.0, 1200.0, on_step=lambda t, s: raised.append(s.departure().active))
+    run(skill, 0.0, 500.0, on_step=lambda t, s: raised.append(s.departure().active))
     assert not any(raised)
     summary = skill.summary()
     for step in STEPS:
@@ -162,7 +162,7 @@ def test_missing_samples_leave_steps_unscored():
 
 def test_memory_is_bounded():
     skill = tracker()
-    run(skill, 0.0, 2000.0)
+    run(skill, 0.0, 300.0)
     assert len(skill.pending) <= H / SETTINGS.forecast_period + 2
     assert all(len(s.times) <= SETTINGS.window / SETTINGS.forecast_period + 1
                for s in skill.scores.values())
@@ -181,3 +181,30 @@ def test_only_one_forecast_per_period_is_kept_and_a_jump_back_resets():
 def test_inconsistent_settings_are_refused(bad):
     with pytest.raises(ValueError, match='skill'):
         tracker(**bad)
+
+
+def test_a_missing_position_is_unknown_not_outside():
+    skill = tracker()
+    for t in np.arange(0.0, 200.0, DT):
+        skill.add_measurement(t, [SPEED, 0.0], np.nan, np.nan, [5.0])
+        forecast(skill, t, SPEED * t)
+    summary = skill.summary()[10]
+    assert summary[POSITION]['n'] == 0 and summary[POSITION]['coverage'] == {}
+    assert summary['u']['coverage'][0.9] == 1.0
+    assert not skill.departure().active
+
+
+def test_the_departure_is_a_warning_on_diagnostics_and_never_masks_an_error():
+    from hybrid_predictor import health
+
+    skill = tracker()
+    run(skill, 0.0, 300.0, offset=lambda t: 1.0 if t >= 100 else 0.0)
+    line = skill.describe(skill.departure())
+    h = health.Health(silence_error=1.5, max_age=5.0, departure=line)
+    h.record_input(299.0)
+    h.record_forecast(299.0, 1.0, 0.0)
+    level, message, _ = h.report(299.5, 299.0, 10, {})
+    assert level == health.WARN and 'departs from its model' in message and 'u at' in message
+    level, message, _ = h.report(305.0, 299.0, 10, {})   # stale for 6 s: ERROR first
+    assert level == health.ERROR and message.startswith('inputs stale')
+    assert 'departs from its model' in message

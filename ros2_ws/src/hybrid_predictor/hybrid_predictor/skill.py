@@ -85,7 +85,18 @@ class _Scores:
 
     times: deque = field(default_factory=deque)     # s
     errors: deque = field(default_factory=deque)    # (n + 1,) state errors, position (m)
-    inside: deque = field(default_factory=deque)    # (L, n + 1) bool, None without bands
+    inside: deque = field(default_factory=deque)    # (L, n + 1) 1 in, 0 out, NaN unknown;
+    #                                                 None without bands
+
+    def coverage(self, level_index: int) -> tuple[np.ndarray, np.ndarray]:
+        """Return (count, fraction inside) per quantity at a band level (NaN if none)."""
+        banded = [b[level_index] for b in self.inside if b is not None]
+        if not banded:
+            return np.zeros(0), np.zeros(0)
+        inside = np.array(banded)
+        count = np.isfinite(inside).sum(axis=0)
+        with np.errstate(invalid='ignore'):
+            return count, np.nansum(inside, axis=0) / count
 
     def drop_until(self, t: float) -> None:
         """Forget scores at or before ``t`` (s)."""
@@ -160,8 +171,7 @@ class LiveSkill:
         reshaped: ``band_lower``/``band_upper`` (L, H, n), ``band_radius`` (L, H).
         Returns True if kept.
         """
-        if self.last_kept is not None and 0.0 <= stamp - self.last_kept < \
-                self.settings.forecast_period:
+        if not self.wants(stamp):
             return False
         if self.last_kept is not None and stamp < self.last_kept:
             self.reset()   # the time line went back: nothing pending belongs to it
@@ -187,6 +197,11 @@ class LiveSkill:
         self.last_kept = stamp
         self.counts['forecasts_kept'] += 1
         return True
+
+    def wants(self, stamp: float) -> bool:
+        """Tell whether a forecast stamped ``stamp`` (s) would be kept."""
+        return self.last_kept is None or not 0.0 <= stamp - self.last_kept < \
+            self.settings.forecast_period
 
     def add_measurement(self, t: float, states: np.ndarray, x: float, y: float,
                         controls: np.ndarray) -> None:
@@ -222,17 +237,17 @@ class LiveSkill:
                y: float) -> None:
         f.scored[i] = True
         step = int(round((f.times[i] - f.t0) / f.dt))
-        position_error = math.hypot(x - f.xy[i, 0], y - f.xy[i, 1])
+        position_error = math.hypot(x - f.xy[i, 0], y - f.xy[i, 1])   # NaN: no position
         errors = np.append(states - f.states[i], position_error)
-        if f.lower is None:
-            inside = None
-        else:
-            with np.errstate(invalid='ignore'):   # NaN beyond the calibrated horizon
-                in_states = (states >= f.lower[:, i]) & (states <= f.upper[:, i])
-                in_position = position_error <= f.radius[:, i]
-            inside = np.column_stack([in_states, in_position])
-            if not (np.isfinite(f.lower[:, i]).all() and np.isfinite(f.radius[:, i]).all()):
-                inside = None
+        inside = None
+        if f.lower is not None:
+            low = np.column_stack([f.lower[:, i], np.full(len(f.radius), -np.inf)])
+            high = np.column_stack([f.upper[:, i], f.radius[:, i]])
+            value = np.broadcast_to(np.append(states, position_error), low.shape)
+            # unknown (NaN) where the measurement or the band (beyond the calibrated
+            # horizon) is missing
+            known = np.isfinite(value) & ~np.isnan(low) & ~np.isnan(high)
+            inside = np.where(known, (value >= low) & (value <= high), np.nan)
         scores = self.scores[step]
         scores.times.append(t)
         scores.errors.append(errors)
@@ -258,16 +273,14 @@ class LiveSkill:
             scores = self._window(step, -math.inf if now is None else now)
             errors = np.array(scores.errors) if scores.errors else np.empty((0, len(
                 self.names)))
-            banded = [b for b in scores.inside if b is not None]
-            inside = np.array(banded) if banded else None
+            covers = [scores.coverage(li) for li in range(len(self.levels))]
             per = {}
             for q, name in enumerate(self.names):
-                e = errors[:, q]
-                cover = {} if inside is None else {
-                    level: float(inside[:, li, q].mean())
-                    for li, level in enumerate(self.levels) if li < inside.shape[1]}
+                e = errors[:, q][np.isfinite(errors[:, q])]
+                cover = {level: float(fraction[q]) for level, (count, fraction)
+                         in zip(self.levels, covers, strict=True) if len(count) and count[q]}
                 per[name] = {'n': len(e), 'rmse': float(np.sqrt(np.mean(e ** 2))) if len(e)
-                             else math.nan, 'coverage': cover, 'banded': len(banded)}
+                             else math.nan, 'coverage': cover}
             out[int(step)] = per
         return out
 
@@ -279,12 +292,10 @@ class LiveSkill:
         li = self.levels.index(self.settings.level)
         s = self.settings
         for step in self.scores:
-            banded = [b for b in self._window(step, now).inside if b is not None]
-            enough = len(banded) >= s.min_samples
-            cover = np.array(banded)[:, li].mean(axis=0) if enough else None
+            count, cover = self._window(step, now).coverage(li)
             for q, name in enumerate(self.names):
                 key = (name, step)
-                c = None if cover is None else float(cover[q])
+                c = float(cover[q]) if len(count) and count[q] >= s.min_samples else None
                 if key in self.raised:
                     if c is None or c >= s.clear_coverage:
                         del self.raised[key]
@@ -308,10 +319,9 @@ class LiveSkill:
         li = self.levels.index(self.settings.level)
         affected = []
         for name, step in sorted(self.raised, key=lambda k: (self.names.index(k[0]), k[1])):
-            banded = [b for b in self.scores[step].inside if b is not None]
-            cover = float(np.array(banded)[:, li, self.names.index(name)].mean()) \
-                if banded else math.nan
-            affected.append((name, step, cover))
+            count, cover = self.scores[step].coverage(li)
+            affected.append((name, step, float(cover[self.names.index(name)])
+                             if len(count) else math.nan))
         since = min(self.raised.values()) if self.raised else None
         return Departure(tuple(affected), since, True)
 
@@ -323,6 +333,7 @@ class LiveSkill:
         for name, step, cover in departure.affected:
             by_name.setdefault(name, []).append(f'{step * self.dt:g} s ({100 * cover:.0f} %)')
         parts = '; '.join(f'{name} at {", ".join(at)}' for name, at in by_name.items())
-        return (f'the vessel departs from its model: the {100 * self.settings.level:g} % '
-                f'band covers too few measurements, {parts} ahead, since '
-                f't={departure.since:.0f} s; record and run the offline diagnosis')
+        return (f'the vessel departs from its model: its {100 * self.settings.level:g} % '
+                f'band covers too few measurements of {parts} ahead, for '
+                f'{self.newest - departure.since:.0f} s; record and run the offline '
+                f'diagnosis')
