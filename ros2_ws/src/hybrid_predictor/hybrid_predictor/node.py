@@ -610,10 +610,11 @@ class PredictorNode(Node):
             counts = dict(self.counts)
         with self.skill_lock:
             departure = self.skill.departure()
+            departure_line = self.skill.describe(departure)
             summary = self.skill.summary()
             skill_counts = dict(self.skill.counts)
         with self.lock:
-            self.health.departure = self.skill.describe(departure)
+            self.health.departure = departure_line
             rejected = self.window.rejected_counts()
             accepted = sum(s.counts.accepted for s in self.window.streams.values())
             rejected['malformed'] = counts.pop('malformed_inputs')
@@ -632,12 +633,14 @@ class PredictorNode(Node):
         diag = DiagnosticArray(status=[status])
         diag.header.stamp = self.get_clock().now().to_msg()
         self.diag_pub.publish(diag)
-        self.skill_pub.publish(self._skill_status(departure, summary, skill_counts))
+        self.skill_pub.publish(self._skill_status(departure, departure_line, summary,
+                                                  skill_counts))
 
-    def _skill_status(self, departure, summary: dict, counts: dict) -> DiagnosticStatus:
+    def _skill_status(self, departure, line: str, summary: dict,
+                      counts: dict) -> DiagnosticStatus:
         """Return the rolling skill summary as a status (forecast/skill)."""
         if departure.active:
-            level, message = DiagnosticStatus.WARN, self.skill.describe(departure)
+            level, message = DiagnosticStatus.WARN, line
         elif not departure.judged:
             level, message = DiagnosticStatus.OK, f'scored; departure {departure.note}'
         else:
