@@ -179,6 +179,10 @@ def test_bad_inputs_are_rejected_counted_and_the_node_keeps_serving(launcher, ro
 
     odom_pub = ros_node.create_publisher(Odometry, '/vessel/odom', 10)
     joint_pub = ros_node.create_publisher(JointState, '/vessel/actuators', 10)
+    # Publish only once the predictor (and this test's own odom reader) are matched:
+    # messages sent before discovery completes are lost, not rejected.
+    assert spin_until(ros_node, lambda: odom_pub.get_subscription_count() >= 2
+                      and joint_pub.get_subscription_count() >= 1, 20)
     latest = odom[-1]
     nan = Odometry()
     nan.header.stamp = m.stamp_from_seconds(m.seconds_from_stamp(latest.header.stamp) + 0.5)
