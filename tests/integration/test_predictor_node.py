@@ -188,6 +188,10 @@ def test_bad_inputs_are_rejected_counted_and_the_node_keeps_serving(launcher, ro
 
     odom_pub = ros_node.create_publisher(Odometry, '/vessel/odom', 10)
     joint_pub = ros_node.create_publisher(JointState, '/vessel/actuators', 10)
+    # Publish only once the predictor (and this test's own odom reader) are matched:
+    # messages sent before discovery completes are lost, not rejected.
+    assert spin_until(ros_node, lambda: odom_pub.get_subscription_count() >= 2
+                      and joint_pub.get_subscription_count() >= 1, 20)
     latest = odom[-1]
     nan = Odometry()
     nan.header.stamp = m.stamp_from_seconds(m.seconds_from_stamp(latest.header.stamp) + 0.5)
@@ -338,3 +342,32 @@ def test_stale_inputs_give_a_clear_status_and_no_forecast(launcher, ros_node):
     status = diagnostics[-1].status[0]
     assert status.level == b'\x02' and 'old' in status.message
     assert not forecasts
+
+
+def test_matured_forecasts_are_scored_on_the_skill_topic(launcher, ros_node):
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+    skill, diagnostics = [], []
+    ros_node.create_subscription(DiagnosticStatus, '/vessel/forecast/skill', skill.append, 10)
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
+    # A short horizon and window: steps 10 to 40 s ahead mature within a minute of
+    # simulated time (3 s of wall time at 20x).
+    start_pair(launcher, 'horizon:=40', 'max_plans:=1', 'skill_forecast_period:=1.0',
+               'skill_window:=60.0', 'skill_min_samples:=5')
+
+    def scored():
+        return skill and int(values(skill[-1]).get('steps_scored', 0)) >= 10
+
+    assert spin_until(ros_node, scored, 120), skill[-1].message if skill else 'no status'
+    status = values(skill[-1])
+    assert skill[-1].level == DiagnosticStatus.OK, skill[-1].message
+    assert 'band' in skill[-1].message
+    assert int(status['u@10s_n']) > 0
+    assert 0.0 <= float(status['u@10s_rmse_m/s']) < 0.5        # a good model, 10 s ahead
+    assert 0.0 <= float(status['position@10s_rmse_m']) < 20.0
+    assert 0.0 <= float(status['u@10s_in90']) <= 1.0
+    assert not any('departs' in s.message for d in diagnostics for s in d.status)
+
+
+def values(status):
+    return {kv.key: kv.value for kv in status.values}

@@ -16,8 +16,9 @@ source.
 - WARN when more than ``rejection_warn_fraction`` of the inputs offered since the
   previous report were rejected, when forecasts were withheld (non-finite or outside
   the vessel limits) since then, when the LSTM keeps hitting its bound, when the source's
-  stamps are followed on a line off the node's clock (re-anchored), or when the model is
-  served unbounded without the user having said so;
+  stamps are followed on a line off the node's clock (re-anchored), when the model is
+  served unbounded without the user having said so, or when the vessel departs from its
+  model (``departure``, set from ``skill``: matured forecasts keep leaving their band);
 - STALE before any input arrived; OK otherwise.
 
 The message names every reason found, the worst first.
@@ -46,6 +47,7 @@ class Health:
     sim_time: bool = False        # the node's clock is /clock (use_sim_time)
     state_topic: str = 'the state topic'   # as the node resolved it, for messages
     unbounded: str = ''           # why the model is served unbounded unasked; '' otherwise
+    departure: str = ''           # how the vessel departs from its model; '' otherwise
     started: float | None = None  # node clock (s) of the first accepted input
     last_state_wall: float | None = None     # wall clock (s) of the latest accepted state
     last_forecast_wall: float | None = None  # wall clock (s) of the latest forecast
@@ -194,6 +196,8 @@ class Health:
                             f'(a source paused, restarted or with its clock off)')
         if self.unbounded:
             warnings.append(self.unbounded)
+        if self.departure:
+            warnings.append(self.departure)
         if self.bound_hit_fraction > self.bound_hit_warn:
             warnings.append(f'LSTM correction at its bound in '
                             f'{100 * self.bound_hit_fraction:.0f} % of the forecast: the '

@@ -185,6 +185,7 @@ class Window:
     states: np.ndarray | None = None     # (window, n_state) in the vessel's state order
     controls: np.ndarray | None = None   # (window, n_control) in its control order
     pose: tuple[float, float, float] | None = None  # x, y (m, NED), psi (rad) at t_end
+    poses: np.ndarray | None = None      # (window, 3) x, y (m, NED), psi (rad) per row
 
 
 class InputWindow:
@@ -352,8 +353,9 @@ class InputWindow:
         columns = self._columns(grid)
         states = np.column_stack([columns[c] for c in self.vessel.state_names])
         controls = np.column_stack([columns[c] for c in self.vessel.control_names])
-        pose = tuple(float(columns[c][-1]) for c in POSE)
-        return Window(True, 'ok', '', fill, t_end, age, states, controls, pose)
+        poses = np.column_stack([columns[c] for c in POSE])
+        return Window(True, 'ok', '', fill, t_end, age, states, controls,
+                      tuple(float(v) for v in poses[-1]), poses)
 
     def _candidate_note(self, now: float) -> str:
         c = self.lines.candidate

@@ -6,9 +6,11 @@ patrol boat's are ``/vessel/odom``, ``/vessel/actuators``, ``/vessel/wind``), wi
 message types it names, and optionally ``/vessel/control_plan``
 (hybrid_predictor_interfaces/ControlPlan).
 Outputs: ``/vessel/forecast`` (Forecast: hybrid forecast, its physical part, the
-LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path) and
-``/diagnostics``. Service ``~/predict`` (Predict): forecasts for candidate control
-plans, evaluated as one batch. Window assembly, plan checks, plausibility limits and
+LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path),
+``/vessel/forecast/skill`` (diagnostic_msgs/DiagnosticStatus: the live skill of matured
+forecasts, ``skill``) and ``/diagnostics`` (WARN when the vessel departs from its
+model). Service ``~/predict`` (Predict): forecasts for candidate control plans,
+evaluated as one batch. Window assembly, plan checks, plausibility limits and
 health figures live in ROS-free modules of this package; the numerics in
 ``hybrid_models``.
 
@@ -52,6 +54,7 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from hybrid_models.checkpoint_format import CheckpointError
 from hybrid_models.engine import Forecaster
+from hybrid_models.metrics import reported_steps
 from hybrid_predictor.health import Health
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
@@ -66,6 +69,7 @@ from hybrid_predictor.plans import (
 )
 from hybrid_predictor.plausibility import Plausibility, forecast_problem
 from hybrid_predictor.schedule import ForecastSchedule
+from hybrid_predictor.skill import LiveSkill, Settings
 from hybrid_predictor.vessel_source import served_vessel
 from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
 from hybrid_predictor_interfaces.srv import Predict
@@ -83,6 +87,7 @@ NODE_NAME = 'predictor'
 FORECAST_TOPIC = 'forecast'
 PATH_TOPIC = 'forecast/path'
 PLAN_TOPIC = 'control_plan'
+SKILL_TOPIC = 'forecast/skill'
 DEFAULT_MODEL = ('models', 'default', 'model.safetensors')
 CLOCK_TOPIC = '/clock'
 # Repeated warnings (rejected inputs, plans, withheld forecasts) are said once per this
@@ -160,6 +165,10 @@ class PredictorNode(Node):
                              state_topic=self.resolved[self.window.state_topic],
                              unbounded=unbounded)
         self.schedule = ForecastSchedule(p['forecast_period'])
+        self.skill = live_skill(self.spec, self.horizon, self.limits, p)
+        self.skill_fed = -math.inf   # stamp of the newest window row given to the skill
+        # Guards the skill tracker, which the forecast and diagnostics threads share.
+        self.skill_lock = threading.Lock()
         # Guards the window, the pending state, the plan, the schedule and the health
         # figures, which the input, forecast, service and clock threads share; held only
         # briefly, but a window assembly takes milliseconds under it.
@@ -193,6 +202,7 @@ class PredictorNode(Node):
 
         self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
+        self.skill_pub = self.create_publisher(DiagnosticStatus, SKILL_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         inputs = MutuallyExclusiveCallbackGroup()
         input_qos = QoSProfile(depth=p['input_queue_depth'], reliability=(
@@ -269,6 +279,9 @@ class PredictorNode(Node):
             self.schedule.reset()
             self.pending = self.deferred = None
             self.health.clock_jumped(self._now())
+        with self.skill_lock:
+            self.skill.reset()
+            self.skill_fed = -math.inf
         with self.count_lock:
             self.counts['clock_resets'] += 1
         self._say('clock_jump', f'clock jumped by {jump.delta.nanoseconds * 1e-9:.1f} s: '
@@ -447,6 +460,32 @@ class PredictorNode(Node):
             self.health.record_forecast(self._now(), latency_ms, bound_hit_fraction(
                 forecast.hybrid, forecast.physics, self.engine.bound), time.monotonic())
         self.path_pub.publish(self._path_message(msg))
+        self._score(result, msg, future[0])
+
+    def _score(self, result, msg: Forecast, future: np.ndarray) -> None:
+        """Give the skill tracker the window's new measurements and the forecast."""
+        dt = self.spec.dt
+        times = result.t_end - dt * np.arange(len(result.states) - 1, -1, -1)
+        names = self.spec.state_names
+        n, horizon = len(names), msg.horizon
+        with self.skill_lock:
+            if result.t_end < self.skill_fed:   # the source restarted or its line moved
+                self.skill.reset()
+                self.skill_fed = -math.inf
+            new = times > self.skill_fed + 0.5 * dt
+            states = frames.states_frd_to_flu(result.states[new], names)
+            x, y, _ = frames.position_ned_to_enu(result.poses[new, 0], result.poses[new, 1])
+            for row in zip(times[new], states, x, y, result.controls[new], strict=True):
+                self.skill.add_measurement(*row)
+            self.skill_fed = times[-1]
+            if not self.skill.wants(result.t_end):
+                return
+            levels = len(msg.band_levels)
+            self.skill.add_forecast(
+                result.t_end, np.reshape(msg.hybrid, (horizon, n)), msg.x, msg.y, future,
+                msg.band_levels, np.reshape(msg.band_lower, (levels, horizon, n)),
+                np.reshape(msg.band_upper, (levels, horizon, n)),
+                np.reshape(msg.band_position_radius, (levels, horizon)), msg.band_note)
 
     def _withheld(self, hybrid: np.ndarray, msg: Forecast) -> str | None:
         return forecast_problem(hybrid, (np.asarray(msg.x), np.asarray(msg.y),
@@ -569,7 +608,13 @@ class PredictorNode(Node):
         clock_publishers = self._clock_publishers()
         with self.count_lock:
             counts = dict(self.counts)
+        with self.skill_lock:
+            departure = self.skill.departure()
+            departure_line = self.skill.describe(departure)
+            summary = self.skill.summary()
+            skill_counts = dict(self.skill.counts)
         with self.lock:
+            self.health.departure = departure_line
             rejected = self.window.rejected_counts()
             accepted = sum(s.counts.accepted for s in self.window.streams.values())
             rejected['malformed'] = counts.pop('malformed_inputs')
@@ -588,6 +633,33 @@ class PredictorNode(Node):
         diag = DiagnosticArray(status=[status])
         diag.header.stamp = self.get_clock().now().to_msg()
         self.diag_pub.publish(diag)
+        self.skill_pub.publish(self._skill_status(departure, departure_line, summary,
+                                                  skill_counts))
+
+    def _skill_status(self, departure, line: str, summary: dict,
+                      counts: dict) -> DiagnosticStatus:
+        """Return the rolling skill summary as a status (forecast/skill)."""
+        if departure.active:
+            level, message = DiagnosticStatus.WARN, line
+        elif not departure.judged:
+            level, message = DiagnosticStatus.OK, f'scored; departure {departure.note}'
+        else:
+            level, message = DiagnosticStatus.OK, (
+                f'matured forecasts within their {100 * self.p["skill_level"]:g} % band')
+        values = {k: str(v) for k, v in counts.items()}
+        values['window_s'] = f'{self.p["skill_window"]:g}'
+        units = dict(zip(self.spec.state_names, self.spec.state_units, strict=True))
+        for step, per in summary.items():
+            ahead = f'{step * self.spec.dt:g}s'
+            for name, score in per.items():
+                unit = units.get(name, 'm')
+                values[f'{name}@{ahead}_n'] = str(score['n'])
+                values[f'{name}@{ahead}_rmse_{unit}'] = f'{score["rmse"]:.4g}'
+                for band, cover in score['coverage'].items():
+                    values[f'{name}@{ahead}_in{100 * band:g}'] = f'{cover:.3f}'
+        return DiagnosticStatus(level=level, name=f'{self.get_fully_qualified_name()}: skill',
+                                message=message, hardware_id=self.hardware_id(),
+                                values=[KeyValue(key=k, value=v) for k, v in values.items()])
 
     def status_name(self) -> str:
         """Return the /diagnostics status name: the node's fully qualified name."""
@@ -604,6 +676,15 @@ def check_time_parameters(p: dict) -> None:
     if p['restart_span'] < p['max_age']:
         raise ValueError(f'restart_span ({p["restart_span"]:g} s) must be at least max_age '
                          f'({p["max_age"]:g} s): a fresh sample is never a restart')
+
+
+def live_skill(spec, horizon: int, limits: PlanLimits, p: dict) -> LiveSkill:
+    """Return the skill tracker of a vessel's forecasts (``skill_*`` parameters)."""
+    settings = Settings(p['skill_forecast_period'], p['skill_window'], p['skill_min_samples'],
+                        p['skill_warn_coverage'], p['skill_clear_coverage'],
+                        p['skill_sustain'], p['skill_control_tolerance'], p['skill_level'])
+    actuators = {limits.names.index(a): limits.ranges[a] for a in limits.actuators}
+    return LiveSkill(spec.state_names, reported_steps(horizon), settings, spec.dt, actuators)
 
 
 def doubles(values) -> array:

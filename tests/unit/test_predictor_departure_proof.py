@@ -1,0 +1,126 @@
+"""
+Proof of the departure WARN: the simulator with a concealed effect switched on mid-run.
+
+The patrol boat's shipped scenario is simulated (vessel_physics), the shipped model
+forecasts it every ``skill_forecast_period`` seconds with the controls the simulated
+operator then applied (a plan followed: what the bands promise), and the predictor's
+own skill tracker (``hybrid_predictor.node.live_skill`` with predictor.yaml's defaults)
+is fed every measured sample, as the node feeds it. A concealed effect of
+vessel_diagnosis (hull fouling, a rudder offset) is ramped in over RAMP_S from ONSET_S;
+the control run has none. Figures are printed (``-s``).
+"""
+
+from dataclasses import replace
+import math
+
+import numpy as np
+import pytest
+
+pytestmark = pytest.mark.slow
+
+ONSET_S = 1800.0     # s of simulated time the effect starts at
+RAMP_S = 60.0        # s over which it comes in fully (the hook must be smooth)
+HOOK = 'tests.unit.test_predictor_departure_proof:{}_from_onset'
+TIMEOUT_S = 1800     # hours of simulation and thousands of forecasts: minutes of work
+
+
+def _ramp(t: float) -> float:
+    return min(max((t - ONSET_S) / RAMP_S, 0.0), 1.0)
+
+
+def fouling_from_onset(t, state, controls, environment):
+    """Return vessel_diagnosis' hull fouling, ramped in from ONSET_S."""
+    from vessel_diagnosis.concealed import hull_fouling
+
+    return _ramp(t) * hull_fouling(t, state, controls, environment)
+
+
+def rudder_offset_from_onset(t, state, controls, environment):
+    """Return vessel_diagnosis' 1 degree rudder offset, ramped in from ONSET_S."""
+    from vessel_diagnosis.concealed import actuator_offset
+
+    return _ramp(t) * actuator_offset(t, state, controls, environment)
+
+
+def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> list[dict]:
+    """
+    Simulate ``runs`` runs of ``hours``; return per run when the WARN was raised.
+
+    Each entry: ``raised`` (s of simulated time of the first WARN, None if none),
+    ``affected`` (the quantities and steps it named), ``final`` (those named at the
+    end), ``warn_s`` the seconds of WARN in total, ``scored`` the steps scored.
+    """
+    from hybrid_models.engine import Forecaster
+    from hybrid_predictor.node import default_model_path, live_skill
+    from hybrid_predictor.plans import PlanLimits, track
+    from vessel_physics.simulation.config import default_config_path, load_simulation
+    from vessel_physics.simulation.simulator import Simulator
+    from vessel_ros_bridge.parameters import load_specs, package_config
+
+    p = {s.name: s.default for s in load_specs(package_config('hybrid_predictor',
+                                                              'predictor.yaml'))}
+    engine = Forecaster.from_checkpoint(default_model_path())
+    spec, window = engine.spec, engine.window
+    horizon = spec.horizon
+    cfg = load_simulation(default_config_path())
+    if effect is not None:
+        cfg = replace(cfg, extra_forces=HOOK.format(effect))
+    data = Simulator(cfg, n_runs=runs, seed=seed).run(hours * 3600.0)
+    engine.warm_up(horizon, window=window, max_batch=1)
+    every = int(round(p['skill_forecast_period'] / spec.dt))
+    out = []
+    for j in range(runs):
+        z = np.stack([data[c][j] for c in spec.state_names], axis=-1)
+        c = np.stack([data[c][j] for c in spec.control_names], axis=-1)
+        pose = np.stack([data[c][j] for c in ('x', 'y', 'psi')], axis=-1)
+        t = data['t'][j]
+        skill = live_skill(spec, horizon, PlanLimits.of(spec), p)
+        raised, affected, warn_s = None, (), 0.0
+        for i in range(window, len(t)):
+            skill.add_measurement(t[i], z[i], pose[i, 0], pose[i, 1], c[i])
+            if (i - window) % every == 0 and i + horizon < len(t):
+                future = c[i + 1:i + 1 + horizon]
+                hybrid = engine.forecast(z[i + 1 - window:i + 1], c[i + 1 - window:i + 1],
+                                         future).hybrid
+                north, east, _ = track(hybrid, tuple(pose[i]), spec)
+                lower, upper, radius = engine.bands.bounds(hybrid)
+                skill.add_forecast(t[i], hybrid[0], north[0], east[0], future,
+                                   engine.bands.levels, lower[0], upper[0], radius)
+            d = skill.departure()
+            warn_s += spec.dt * d.active
+            if d.active and raised is None:
+                raised, affected = float(t[i]), d.affected
+        out.append({'raised': raised, 'affected': affected, 'warn_s': warn_s,
+                    'final': skill.departure().affected,
+                    'scored': skill.counts['steps_scored']})
+    return out
+
+
+def _name(affected) -> str:
+    return ', '.join(f'{q}@{s}' for q, s, _ in affected)
+
+
+@pytest.mark.timeout(TIMEOUT_S)
+@pytest.mark.parametrize(('effect', 'named'), [('fouling', 'u'),
+                                               ('rudder_offset', 'position')])
+def test_a_concealed_effect_switched_on_mid_run_raises_the_warn(effect, named):
+    runs = departure_runs(effect, runs=3, hours=1.5, seed=11)
+    for r in runs:
+        delay = math.nan if r['raised'] is None else r['raised'] - ONSET_S
+        print(f'{effect}: WARN {delay:.0f} s after onset ({_name(r["affected"])}; at the '
+              f'end {_name(r["final"])}), {r["warn_s"]:.0f} s of WARN, {r["scored"]} '
+              f'steps scored')
+    # raised after the onset, within half an hour, and still raised at the end
+    assert all(r['raised'] is not None and ONSET_S < r['raised'] < ONSET_S + 1800.0
+               for r in runs)
+    assert all(any(q == named for q, _, _ in r['final']) for r in runs)
+
+
+@pytest.mark.timeout(TIMEOUT_S)
+def test_the_control_raises_no_warn_over_ten_simulated_hours():
+    runs = departure_runs(None, runs=5, hours=2.0, seed=12)
+    for r in runs:
+        print(f'control: {r["warn_s"]:.0f} s of WARN, first at {r["raised"]} '
+              f'({_name(r["affected"])}), {r["scored"]} steps scored')
+    assert all(r['raised'] is None for r in runs)
+    assert all(r['scored'] > 1000 for r in runs)
