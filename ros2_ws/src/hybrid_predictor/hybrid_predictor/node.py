@@ -166,7 +166,6 @@ class PredictorNode(Node):
                              unbounded=unbounded)
         self.schedule = ForecastSchedule(p['forecast_period'])
         self.skill = live_skill(self.spec, self.horizon, self.limits, p)
-        self.skill_fed = -math.inf   # stamp of the newest window row given to the skill
         # Guards the skill tracker, which the forecast and diagnostics threads share.
         self.skill_lock = threading.Lock()
         # Guards the window, the pending state, the plan, the schedule and the health
@@ -281,7 +280,6 @@ class PredictorNode(Node):
             self.health.clock_jumped(self._now())
         with self.skill_lock:
             self.skill.reset()
-            self.skill_fed = -math.inf
         with self.count_lock:
             self.counts['clock_resets'] += 1
         self._say('clock_jump', f'clock jumped by {jump.delta.nanoseconds * 1e-9:.1f} s: '
@@ -469,15 +467,15 @@ class PredictorNode(Node):
         names = self.spec.state_names
         n, horizon = len(names), msg.horizon
         with self.skill_lock:
-            if result.t_end < self.skill_fed:   # the source restarted or its line moved
+            fed = self.skill.newest   # the newest measurement given so far
+            if fed is not None and result.t_end < fed:   # the source restarted or moved
                 self.skill.reset()
-                self.skill_fed = -math.inf
-            new = times > self.skill_fed + 0.5 * dt
+                fed = None
+            new = times > (-math.inf if fed is None else fed + 0.5 * dt)
             states = frames.states_frd_to_flu(result.states[new], names)
             x, y, _ = frames.position_ned_to_enu(result.poses[new, 0], result.poses[new, 1])
             for row in zip(times[new], states, x, y, result.controls[new], strict=True):
                 self.skill.add_measurement(*row)
-            self.skill_fed = times[-1]
             if not self.skill.wants(result.t_end):
                 return
             levels = len(msg.band_levels)
