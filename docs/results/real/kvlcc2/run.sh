@@ -31,6 +31,9 @@ run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_c
 # 6. The hybrid with the Hyd regression physics (no MMG) on the held-out split, five seeds.
 run python offline/crossval.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_hyd" \
   --seeds 5 --model "hybrid, Hyd regression physics=$CONFIGS/hybrid.yaml" > /dev/null
+# 7. The five folds run by run: each held-out run's error per model, the seeds' ensemble.
+run python docs/results/real/analysis/workflow_folds.py "$WORK/kvlcc2_cv5" "$OUT/cv5" \
+  > /dev/null
 for study in heldout cv5 hyd; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \

@@ -1,0 +1,130 @@
+"""
+Per fold and per held-out run: where a cross-validated workflow's hybrids win and lose.
+
+Usage:  tools/with_env.sh python docs/results/real/analysis/workflow_folds.py STUDY OUT
+STUDY is the --out folder of ``offline/workflow.py --folds K`` (its results.json, folds/
+and runs/); OUT receives folds.md and folds.json.
+
+The workflow's table pools every fold. This breaks it down: for each test run of each
+fold, the position error at the horizon's end (mean over that run's forecasts) of the
+nominal and of the augmented physics alone, and of each hybrid as the mean over its
+seeds, their spread, and the forecast of the seeds' mean (an ensemble, which the
+predictor does not serve: it measures how much of a hybrid's error is seed variance).
+Next to each run, the largest rudder angle of that run against the largest of the
+fold's training runs, so that extrapolation shows.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+import sys
+
+import numpy as np
+
+from hybrid_models.checkpoint import load_model
+from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
+from hybrid_models.evaluation import PhysicsOnly
+from hybrid_models.metrics import forecast_metrics
+from hybrid_models.models import predict
+from hybrid_models.nets import HybridModel
+from hybrid_models.studies.crossval import Fold, run_dir
+from hybrid_models.training.train import MODEL_FILE
+from vessel_datasets.format import read_dataset
+
+
+def at_horizon(pred: np.ndarray, windows, spec) -> float:
+    """Mean position error (m) at the last forecast step."""
+    return float(forecast_metrics(pred, windows.z_target, spec)['trajectory']['final_mean'])
+
+
+def rudder_range(runs, spec) -> float:
+    """Largest |rudder| (deg) of the vessel's rudders over ``runs``; NaN without one."""
+    rudders = [spec.control_index(a.name) for a in spec.actuators if a.kind == 'rudder']
+    if not rudders:
+        return float('nan')
+    return float(np.degrees(max(np.abs(r.c[:, rudders]).max() for r in runs)))
+
+
+def fold_rows(study: Path, fold: Fold, hybrids: list[str], seeds: list[int]) -> list[dict]:
+    """One row per test run of ``fold`` that is long enough for one forecast."""
+    spec = read_dataset(fold.path).vessel
+    window, horizon, stride = evaluation_protocol(spec, None, None, None)
+    models = {label: [load_model(run_dir(study, label, fold, s) / MODEL_FILE)[0]
+                      for s in seeds] for label in hybrids}
+    trained = rudder_range(load_runs(fold.path, 'train', spec), spec)
+    runs = [r for r in load_runs(fold.path, 'test', spec) if r.length >= window + horizon]
+    # One forecast call per model for the whole fold: each new batch shape compiles anew.
+    windows = forecast_windows(runs, window, horizon, stride, 'true')
+    preds = {label: [predict(m, windows) for m in members] for label, members in models.items()}
+    alone = {label: predict(PhysicsOnly(members[0].physical), windows)
+             for label, members in models.items()}
+    rows = []
+    for k, run in enumerate(runs):
+        mine = windows.run_index == k
+        own = windows.subset(mine)
+        row = {'fold': fold.index, 'run': run.run_id, 'forecasts': len(own),
+               'rudder_deg': rudder_range([run], spec), 'trained_rudder_deg': trained}
+        for label, members in models.items():
+            assert isinstance(members[0], HybridModel), f'{label} is not a hybrid'
+            per_seed = [at_horizon(p[mine], own, spec) for p in preds[label]]
+            row[label] = {'mean': float(np.mean(per_seed)),
+                          'sd': float(np.std(per_seed, ddof=1)) if len(seeds) > 1 else 0.0,
+                          'ensemble': at_horizon(np.mean(preds[label], axis=0)[mine], own,
+                                                 spec),
+                          'physics_alone': at_horizon(alone[label][mine], own, spec)}
+        rows.append(row)
+    return rows
+
+
+def markdown(rows: list[dict], hybrids: list[str], horizon_s: float) -> str:
+    """Return the rows as a Markdown table."""
+    head = ['fold', 'held-out run', 'rudder (trained up to)']
+    for label in hybrids:
+        head += [f'{label}: physics alone', f'{label}: mean ± sd of seeds', 'ensemble']
+    lines = [f"Position error at {horizon_s:.0f} s [m], mean over each run's forecasts.",
+             '', '| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
+    for r in rows:
+        cells = [str(r['fold']), f"{r['run']} ({r['forecasts']})",
+                 f"{r['rudder_deg']:.0f}° ({r['trained_rudder_deg']:.0f}°)"]
+        for label in hybrids:
+            h = r[label]
+            cells += [f"{h['physics_alone']:.2f}", f"{h['mean']:.2f} ± {h['sd']:.2f}",
+                      f"{h['ensemble']:.2f}"]
+        lines.append('| ' + ' | '.join(cells) + ' |')
+    # Each run's mean weighted by its forecasts is the pooled figure of the study's table.
+    weights = np.array([r['forecasts'] for r in rows], dtype=float)
+    cells = ['all', f'pooled ({int(weights.sum())})', '']
+    for label in hybrids:
+        cells += [f'**{np.average([r[label][k] for r in rows], weights=weights):.2f}**'
+                  for k in ('physics_alone', 'mean', 'ensemble')]
+    lines.append('| ' + ' | '.join(cells) + ' |')
+    return '\n'.join(lines) + '\n'
+
+
+def main(argv: list[str]) -> int:
+    """Break a workflow study down by fold and run; write folds.md and folds.json."""
+    if len(argv) != 2:
+        print(__doc__, file=sys.stderr)
+        return 2
+    study, out = Path(argv[0]), Path(argv[1])
+    result = json.loads((study / 'results.json').read_text())
+    seeds = result['protocol']['seeds']
+    hybrids = [row['label'] for row in result['rows'] if 'physics' in row]
+    rows = []
+    for described in result['folds']:
+        fold = Fold(described['index'], study / 'folds' / f"fold{described['index']}",
+                    *(tuple(described[s]) for s in ('train', 'val', 'test')))
+        rows += fold_rows(study, fold, hybrids, seeds)
+        print(f'fold {fold.index}: {len(rows)} runs so far', file=sys.stderr, flush=True)
+    out.mkdir(parents=True, exist_ok=True)
+    spec = read_dataset(study / 'folds' / 'fold0').vessel
+    horizon_s = evaluation_protocol(spec, None, None, None)[1] * spec.dt
+    (out / 'folds.json').write_text(json.dumps(rows, indent=2))
+    (out / 'folds.md').write_text(markdown(rows, hybrids, horizon_s))
+    print(markdown(rows, hybrids, horizon_s))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))
