@@ -4,7 +4,12 @@ import numpy as np
 import pytest
 
 from hybrid_models.bands import BandsError, calibrate, coverage, coverage_table
-from hybrid_models.cross_bands import HeldOut, cross_calibrate, held_out_coverage
+from hybrid_models.cross_bands import (
+    HeldOut,
+    cross_calibrate,
+    held_out_coverage,
+    least_covered,
+)
 from vessel_description import load_vessel
 
 SHIP = load_vessel('patrol_boat')
@@ -53,6 +58,10 @@ def test_held_out_coverage_finds_the_fold_the_others_do_not_stand_for():
     odd = cover['per_fold'][0]
     assert odd['fold'] == 0 and max(odd['states']['u'][1]) < 0.6
     assert all(min(c['states']['u'][1]) > 0.97 for c in cover['per_fold'][1:])
+    fraction, name, step = least_covered(odd, 0.9)
+    assert fraction == min(min(f[1]) for f in (*odd['states'].values(), odd['position']))
+    series = odd['position'] if name == 'position' else odd['states'][name]
+    assert series[1][odd['steps'].index(step)] == fraction
     # Pooled = the folds' fractions weighted by their forecasts.
     expected = np.mean([c['states']['u'][1] for c in cover['per_fold']], axis=0)
     assert np.allclose(cover['states']['u'][1], expected)

@@ -60,6 +60,7 @@ def test_study_bands_are_written_at_the_checkpoints_threshold_and_their_coverage
     assert 'leave-one-fold-out' in printed and bands.origin in printed
     rows = [line for line in printed.splitlines() if line.startswith('| 0.')]
     assert len(rows) == 2 * 4          # two levels, four reported steps
+    assert printed.count('held out (') == 2 and '0.9 band ' in printed
     before, after = load_file(str(model_of(out))), load_file(str(path))
     assert all(np.array_equal(before[k], after[k]) for k in before)
     # One seed's models: half the forecasts.

@@ -99,3 +99,17 @@ def held_out_coverage(held_out: list[HeldOut], spec, relative_threshold,
             'position': mean(lambda c: c['position']),
             'forecasts': int(sum(c['forecasts'] for c in per_fold)), 'per_fold': per_fold}
 
+
+
+
+def least_covered(cover: dict, level: float) -> tuple[float, str, int]:
+    """
+    Return where the band at ``level`` held the fewest forecasts: (fraction, name, step).
+
+    Over the states and the position ('position') at the steps of a coverage
+    (``bands.coverage``, ``held_out_coverage`` or one of its 'per_fold').
+    """
+    li = cover['levels'].index(level)
+    series = {**cover['states'], 'position': cover['position']}
+    return min((fraction[li][si], name, step) for name, fraction in series.items()
+               for si, step in enumerate(cover['steps']))

@@ -40,7 +40,7 @@ from hybrid_models.checkpoint_format import (
     vessel_of,
 )
 from hybrid_models.cli.arguments import progress
-from hybrid_models.cross_bands import cross_calibrate, held_out_coverage
+from hybrid_models.cross_bands import cross_calibrate, held_out_coverage, least_covered
 from hybrid_models.data import dataset_hash, evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
 from hybrid_models.studies.crossval import out_of_fold_forecasts
@@ -136,7 +136,13 @@ def set_study_bands(checkpoint: Path, study: Path, label: str, seed: int | None,
     table = [f'Bands {bands.origin}: width (upper - lower; position: radius) and, in '
              f'brackets, the fraction of forecasts they held leave-one-fold-out '
              f"({cover['forecasts']} forecasts):", '',
-             *coverage_table(bands, cover, engine.spec)]
+             *coverage_table(bands, cover, engine.spec), '']
+    for fold in cover['per_fold']:
+        least = [f'{level:g} band {name} after {step * engine.spec.dt:g} s: {fraction:.2f}'
+                 for level in bands.levels
+                 for fraction, name, step in [least_covered(fold, level)]]
+        table.append(f"Fold {fold['fold']} held out ({fold['forecasts']} forecasts), least "
+                     f"covered: {'; '.join(least)}")
     return bands, table
 
 
