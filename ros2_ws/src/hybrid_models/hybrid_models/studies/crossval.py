@@ -108,10 +108,15 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
             splits.append(runs)
     out_folds = []
     for k, (split, note) in enumerate(zip(splits, notes, strict=True)):
-        path = Path(out) / 'folds' / f'fold{k}'
+        path = fold_dir(out, k)
         resplit(dataset, path, split, note)
         out_folds.append(Fold(k, path, *(tuple(split[s]) for s in ('train', 'val', 'test'))))
     return out_folds
+
+
+def fold_dir(out: Path, index: int) -> Path:
+    """Return where ``make_folds`` writes the view of fold ``index`` of a study in ``out``."""
+    return Path(out) / 'folds' / f'fold{index}'
 
 
 def _long_enough_first(names: list[str], recordings: dict[str, list[str]], dataset: Dataset,
@@ -162,7 +167,7 @@ def read_study(out: Path) -> tuple[list[Fold], dict]:
     path = Path(out) / RESULTS_FILE
     try:
         result = json.loads(path.read_text())
-        folds = [Fold(int(f['index']), Path(out) / 'folds' / f"fold{f['index']}",
+        folds = [Fold(int(f['index']), fold_dir(out, int(f['index'])),
                       *(tuple(f[s]) for s in ('train', 'val', 'test')))
                  for f in result['folds']]
     except FileNotFoundError:
