@@ -120,6 +120,14 @@ class Bands:
         around = forecast[..., None, :, :]
         return around + lower, around + upper, position
 
+    @property
+    def origin(self) -> str:
+        """Return what the bands were calibrated on, as one phrase."""
+        if self.source.get('note'):
+            return str(self.source['note'])
+        return (f"{self.source.get('forecasts')} forecasts of {self.source.get('runs')} "
+                f"validation runs (one every {self.source.get('stride')} samples)")
+
     def serves(self, relative_threshold) -> bool:
         """Tell whether these bands hold for forecasts served at ``relative_threshold``."""
         return _same_threshold(self.relative_threshold, relative_threshold)
@@ -244,3 +252,28 @@ def coverage(bands: Bands, pred: np.ndarray, true: np.ndarray, spec,
         inside_position.append((distance <= position[li, at]).mean(axis=0).tolist())
     return {'steps': steps, 'levels': list(bands.levels), 'states': states,
             'position': inside_position, 'forecasts': int(len(pred))}
+
+
+def coverage_table(bands: Bands, cover: dict, spec) -> list[str]:
+    """
+    Return the Markdown table of the bands at ``cover``'s steps and their coverage there.
+
+    One row per level and reported step: the width of each state's band (upper - lower)
+    and the position band's radius (m), each with the fraction of forecasts it held in
+    brackets (``coverage`` or ``cross_bands.held_out_coverage``).
+    """
+    steps = cover['steps']
+    lower, upper, position = bands.at(max(steps))
+    lines = ['| level | after [s] | position [m] | '
+             + ' | '.join(f'{s} [{u}]' for s, u in zip(spec.state_names, spec.state_units,
+                                                     strict=True)) + ' |',
+             '|' + '---|' * (3 + spec.n_state)]
+    for li, level in enumerate(bands.levels):
+        for si, step in enumerate(steps):
+            cells = [f'{level:g}', f'{step * spec.dt:g}',
+                     f"{position[li, step - 1]:.4g} ({cover['position'][li][si]:.2f})"]
+            cells += [f"{upper[li, step - 1, i] - lower[li, step - 1, i]:.4g} "
+                      f"({cover['states'][name][li][si]:.2f})"
+                      for i, name in enumerate(spec.state_names)]
+            lines.append('| ' + ' | '.join(cells) + ' |')
+    return lines

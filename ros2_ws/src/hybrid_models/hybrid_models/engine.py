@@ -105,8 +105,7 @@ def served_bands(config: dict, spec, relative_threshold) -> tuple[Bands | None, 
     if not bands.serves(relative_threshold):
         return None, (f'the calibrated bands hold at relative threshold '
                       f'{bands.relative_threshold}, not at the served {relative_threshold}')
-    return bands, (f'bands at levels {list(bands.levels)} from '
-                   f'{bands.source.get("forecasts")} validation forecasts')
+    return bands, f'bands at levels {list(bands.levels)} from {bands.origin}'
 
 
 class Forecaster:

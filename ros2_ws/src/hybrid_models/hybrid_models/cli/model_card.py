@@ -20,7 +20,7 @@ import sys
 
 import numpy as np
 
-from hybrid_models.bands import coverage
+from hybrid_models.bands import coverage, coverage_table
 from hybrid_models.checkpoint_format import CheckpointError, read_header, vessel_of
 from hybrid_models.cli.arguments import progress
 from hybrid_models.cli.arguments import threshold as threshold_value
@@ -98,28 +98,11 @@ def band_lines(engine: Forecaster, metrics: dict) -> list[str]:
     bands, cover = engine.bands, metrics.get('bands')
     if bands is None or cover is None:
         return [f'None served: {engine.bands_note}.']
-    spec, steps = engine.spec, cover['steps']
-    lower, upper, position = bands.at(max(steps))
-    source = bands.source
-    lines = [f"From {source.get('forecasts')} forecasts of {source.get('runs')} validation "
-             f"runs (one every {source.get('stride')} samples) against the measured states, "
-             f'at threshold {bands.relative_threshold}; published with every forecast '
-             '(docs/predictor.md). Width of each band (upper - lower; position: radius) and, '
-             'in brackets, the fraction of the test forecasts above whose measured states '
-             'it held:', '',
-             '| level | after [s] | position [m] | '
-             + ' | '.join(f'{s} [{u}]' for s, u in zip(spec.state_names, spec.state_units,
-                                                     strict=True)) + ' |',
-             '|' + '---|' * (3 + spec.n_state)]
-    for li, level in enumerate(bands.levels):
-        for si, step in enumerate(steps):
-            cells = [f'{level:g}', f'{step * spec.dt:g}',
-                     f"{position[li, step - 1]:.4g} ({cover['position'][li][si]:.2f})"]
-            cells += [f"{upper[li, step - 1, i] - lower[li, step - 1, i]:.4g} "
-                      f"({cover['states'][name][li][si]:.2f})"
-                      for i, name in enumerate(spec.state_names)]
-            lines.append('| ' + ' | '.join(cells) + ' |')
-    return lines
+    return [f'From {bands.origin} against the measured states, at threshold '
+            f'{bands.relative_threshold}; published with every forecast (docs/predictor.md). '
+            'Width of each band (upper - lower; position: radius) and, in brackets, the '
+            'fraction of the test forecasts above whose measured states it held:', '',
+            *coverage_table(bands, cover, engine.spec)]
 
 
 def selection_lines(config: dict) -> list[str]:

@@ -29,6 +29,7 @@ import numpy as np
 
 from hybrid_models import report
 from hybrid_models.checkpoint import load_model
+from hybrid_models.cross_bands import HeldOut
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.evaluation import PhysicsOnly, physics_identity, physics_label, seed_row
 from hybrid_models.metrics import StepErrors, forecast_metrics
@@ -38,6 +39,8 @@ from hybrid_models.selection import harms
 from hybrid_models.training.jobs import train_job
 from hybrid_models.training.train import MODEL_FILE
 from vessel_datasets.format import Dataset, read_dataset, resplit
+
+RESULTS_FILE = 'results.json'
 
 
 @dataclass(frozen=True)
@@ -105,10 +108,15 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
             splits.append(runs)
     out_folds = []
     for k, (split, note) in enumerate(zip(splits, notes, strict=True)):
-        path = Path(out) / 'folds' / f'fold{k}'
+        path = fold_dir(out, k)
         resplit(dataset, path, split, note)
         out_folds.append(Fold(k, path, *(tuple(split[s]) for s in ('train', 'val', 'test'))))
     return out_folds
+
+
+def fold_dir(out: Path, index: int) -> Path:
+    """Return where ``make_folds`` writes the view of fold ``index`` of a study in ``out``."""
+    return Path(out) / 'folds' / f'fold{index}'
 
 
 def _long_enough_first(names: list[str], recordings: dict[str, list[str]], dataset: Dataset,
@@ -147,6 +155,32 @@ def run_dir(out: Path, label: str, fold: Fold, seed: int) -> Path:
     """Return where a (model, fold, seed) training writes (the label made a folder name)."""
     folder = re.sub(r'[^A-Za-z0-9_.+-]+', '_', label).strip('_') or 'model'
     return Path(out) / 'runs' / folder / f'fold{fold.index}' / f'seed{seed}'
+
+
+def read_study(out: Path) -> tuple[list[Fold], dict]:
+    """
+    Return the folds of the finished study in ``out`` and its results (results.json).
+
+    The fold views are read where ``make_folds`` wrote them under ``out``, so a study
+    moved as a whole still reads.
+    """
+    path = Path(out) / RESULTS_FILE
+    try:
+        result = json.loads(path.read_text())
+        folds = [Fold(int(f['index']), fold_dir(out, int(f['index'])),
+                      *(tuple(f[s]) for s in ('train', 'val', 'test')))
+                 for f in result['folds']]
+    except FileNotFoundError:
+        raise ValueError(f'{out} holds no finished study ({RESULTS_FILE} missing)') from None
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ValueError(f'{path} is not the results of a study '
+                         f'({type(exc).__name__}: {exc})') from None
+    return folds, result
+
+
+def study_models(result: dict) -> list[str]:
+    """Return the labels of the models a study trained (its rows other than physics)."""
+    return [row['label'] for row in result['rows'] if 'per_seed_metrics' in row]
 
 
 def train_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
@@ -225,6 +259,50 @@ def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
             'position_error_curves': curves}
 
 
+def out_of_fold_forecasts(out: Path, label: str, spec, relative_threshold, window: int,
+                          horizon: int, stride: int, seeds: Sequence[int] | None = None,
+                          say: Callable[[str], None] = lambda m: None) -> list[HeldOut]:
+    """
+    Forecast every fold's test runs with that fold's hybrids of ``label``; return them.
+
+    Each (fold, seed) model of the study in ``out`` is served at ``relative_threshold``
+    (``HybridModel.served_at``) and forecasts its fold's test runs (one forecast every
+    ``stride`` samples, ``window`` + ``horizon`` samples) against the measured states;
+    ``seeds`` None takes every seed of the study. Refuse a label the study did not
+    train, a model that is not a hybrid, a seed the study has not, fewer than 2 folds,
+    a study of another vessel or rate than ``spec`` (the vessel the bands are for).
+    """
+    folds, result = read_study(out)
+    labels, study_seeds = study_models(result), result['protocol']['seeds']
+    if label not in labels:
+        raise ValueError(f'{out} trained no model {label!r}; it trained {labels}')
+    if len(folds) < 2:
+        raise ValueError(f"{out} is a study of {len(folds)} fold (the dataset's own "
+                         f'split): out-of-fold forecasts need at least 2 folds')
+    seeds = list(study_seeds if seeds is None else seeds)
+    unknown = sorted(set(seeds) - set(study_seeds))
+    if unknown:
+        raise ValueError(f'{out} trained seeds {study_seeds}, not {unknown}')
+    read_dataset(folds[0].path).vessel.check_compatible(
+        spec, f'the model given bands by study {out}')
+    held_out = []
+    for fold in folds:
+        windows = forecast_windows(load_runs(fold.path, 'test', spec), window, horizon, stride)
+        preds = []
+        for s in seeds:
+            model, _ = load_model(run_dir(out, label, fold, s) / MODEL_FILE)
+            if not isinstance(model, HybridModel):
+                raise ValueError(f'{label!r} of {out} is a {type(model).__name__}, not a '
+                                 f'hybrid: only a hybrid is served at a threshold')
+            with model.served_at(relative_threshold):
+                preds.append(predict(model, windows))
+            say(f'fold {fold.index} seed {s}: {len(windows)} forecasts of '
+                f'{len(fold.test)} runs')
+        held_out.append(HeldOut(fold.index, fold.test, np.concatenate(preds),
+                                np.concatenate([windows.z_target] * len(seeds))))
+    return held_out
+
+
 def _position_curve(pred: np.ndarray, true: np.ndarray, spec) -> list[float]:
     errors = StepErrors.of(pred, true, spec)
     return (errors.position / errors.count).tolist()
@@ -249,7 +327,7 @@ def _physics_pooled(per_fold: list, owner: str, true: np.ndarray, spec,
 def write_results(out: Path, result: dict, spec) -> None:
     """Write results.json, table.md and position_error_over_horizon.png into ``out``."""
     out = Path(out)
-    (out / 'results.json').write_text(json.dumps(result, indent=2))
+    (out / RESULTS_FILE).write_text(json.dumps(result, indent=2))
     (out / 'table.md').write_text(report.markdown_table(result['rows'], spec))
     report.plot_position_curves(out / 'position_error_over_horizon.png', spec,
                                 result['position_error_curves'])
