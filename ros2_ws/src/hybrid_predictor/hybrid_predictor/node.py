@@ -65,9 +65,10 @@ from hybrid_predictor.plans import (
     check_plan,
     hold_latest,
     plan_controls,
+    plan_rows,
     track,
 )
-from hybrid_predictor.plausibility import Plausibility, forecast_problem
+from hybrid_predictor.plausibility import forecast_problem
 from hybrid_predictor.schedule import ForecastSchedule
 from hybrid_predictor.skill import LiveSkill, Settings
 from hybrid_predictor.vessel_source import served_vessel
@@ -147,10 +148,8 @@ class PredictorNode(Node):
         self.resolved = {topic: self.resolve_topic_name(node_topic(topic))
                          for topic in self.topic_map.topics}
         self.plan_topic = self.resolve_topic_name(PLAN_TOPIC)
-        self.window = InputWindow(self.topic_map, window, self.spec.dt, p['max_gap'],
-                                  p['max_age'], p['max_future'], p['restart_span'],
-                                  Plausibility(self.topic_map, p['quaternion_tolerance']),
-                                  re_anchor_after=p['re_anchor_after'], labels=self.resolved)
+        self.window = InputWindow.of_node(self.topic_map, window, self.spec.dt, p,
+                                          labels=self.resolved)
         self.bounded = bool(np.isfinite(self.engine.bound).all())
         threshold = self.engine.relative_threshold
         self.relative_threshold = math.nan if threshold is None else float(threshold)
@@ -430,15 +429,13 @@ class PredictorNode(Node):
         """Return the future controls (1, H, n) of the published forecast and what they are."""
         if plan is not None:
             msg, matrix = plan
-            age = result.t_end - messages.seconds_from_stamp(msg.header.stamp)
-            if 0.0 <= age <= self.p['plan_timeout']:
-                shift = int(round(age / self.spec.dt))
-                rows = matrix[shift:shift + self.horizon]
-                if len(rows) == self.horizon:
-                    return plan_controls(rows, result.controls[-1])[None], followed(msg)
-                self._say('stale_plan', f'ignoring {self.plan_topic} from {age:.1f} s '
-                                        f'before the forecast: {len(matrix) - shift} of its '
-                                        f'steps are left, need {self.horizon}')
+            rows, why = plan_rows(matrix, messages.seconds_from_stamp(msg.header.stamp),
+                                  result.t_end, self.spec.dt, self.horizon,
+                                  self.p['plan_timeout'])
+            if rows is not None:
+                return plan_controls(rows, result.controls[-1])[None], followed(msg)
+            if why:
+                self._say('stale_plan', f'ignoring {self.plan_topic} {why}')
         return hold_latest(result.controls[-1], self.horizon), Assumed()
 
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
