@@ -344,12 +344,20 @@ class InputWindow:
         return {reason: sum(getattr(s.counts, reason) for s in self.streams.values())
                 for reason in REJECTIONS}
 
-    def assemble(self, now: float) -> Window:
-        """Build the window ending at the newest state sample, or say why it cannot."""
+    def assemble(self, now: float, until: float | None = None) -> Window:
+        """
+        Build the window ending at the newest state sample, or say why it cannot.
+
+        ``until`` (s) ends it at that state sample instead: the one a forecast was
+        scheduled for and whose actuator and wind samples were awaited, where a newer
+        state may have arrived meanwhile without its own.
+        """
         t_end = self.streams[self.state_topic].latest_time
         if t_end is None:
             return Window(False, 'incomplete', f'no {self.state_topic} received', 0.0, None,
                           None)
+        if until is not None:
+            t_end = min(t_end, until)
         t_end -= self.lag
         age = now - self.lines.offset - t_end
         grid = t_end - self.dt * np.arange(self.window - 1, -1, -1, dtype=float)

@@ -181,7 +181,7 @@ class PredictorNode(Node):
         self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
                        0, 'clock_resets': 0, 'service_requests': 0, 'service_busy': 0,
-                       'service_failed': 0}
+                       'service_failed': 0, 'forecasts_before_sample_complete': 0}
         self.latest_plan: tuple[ControlPlan, dict] | None = None
         self.pending: Pending | None = None
         # A scheduled state whose actuator or wind samples had not arrived when its wait
@@ -413,15 +413,22 @@ class PredictorNode(Node):
             pending, self.pending = self.pending, None
             if pending is None:
                 return
-            result = self._window()
+            # The scheduled state, whose samples were awaited: not a newer one that
+            # arrived meanwhile, perhaps before its actuators and wind.
+            result = self._window(until=pending.t)
             plan = self.latest_plan
-            if not result.ready and not self._synced(pending.t):
+            synced = self._synced(pending.t)
+            if not result.ready and not synced:
                 self.deferred = pending
         if result.ready:
+            # From a sample whose actuators or wind had not arrived when the wait was
+            # over: an offline re-forecast of the same messages (re_forecast) differs.
+            with self.count_lock:
+                self.counts['forecasts_before_sample_complete'] += not synced
             self._forecast_and_publish(result, plan, pending.received_ns)
 
-    def _window(self):
-        result = self.window.assemble(self._now())
+    def _window(self, until: float | None = None):
+        result = self.window.assemble(self._now(), until)
         self.health.record_window(result.status, result.reason, result.fill)
         return result
 

@@ -34,7 +34,7 @@ import time
 
 import numpy as np
 
-from vessel_bringup.processes import Children, node_argv, rclpy_options
+from vessel_bringup.processes import Children, node_argv, rclpy_options, stop_group
 
 STATES = ('u', 'v', 'p', 'r', 'phi')
 RECORDED = ('odom', 'actuators', 'wind', 'control_plan', 'forecast', 'odom_true')
@@ -88,14 +88,17 @@ def make_plan(seed: int, seconds: int) -> np.ndarray:
 
 
 def collect(seconds: float, speed_up: float, every: int, start_simulator,
-            plan: np.ndarray | None = None, kept=None):
+            plan: np.ndarray | None = None, kept=None, stop_simulator=None):
     """
     Wait for the predictor, start the simulator, listen until `seconds` of truth arrived.
 
     With a ``plan`` the client steers the vessel along it and announces it to the
     predictor. ``kept`` (a ``hybrid_predictor.re_forecast.ReForecast``) receives what the
-    predictor is given: its input messages and the plan. Returns (truth by simulated
-    second, kept forecasts by their start second, the stamps (s) of every forecast heard).
+    predictor is given: its input messages and the plan. ``stop_simulator`` is called
+    once the truth is complete, before the predictor's final /diagnostics is awaited (so
+    its counts cover every forecast). Returns (truth by simulated
+    second, kept forecasts by their start second, the stamps (s) of every forecast heard,
+    the values of the predictor's newest /diagnostics status).
     """
     from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry
@@ -155,7 +158,7 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
                                      lambda msg, topic=topic: kept.add_input(topic, msg), 100)
     node.create_subscription(Odometry, m.ODOM_TRUE_TOPIC, on_truth, 100)
     node.create_subscription(Forecast, 'forecast', on_forecast, 10)
-    ready = []
+    ready = []   # the predictor's /diagnostics, the newest last
     node.create_subscription(DiagnosticArray, '/diagnostics', ready.append, 10)
     deadline = time.monotonic() + 120.0
     while not ready and time.monotonic() < deadline:
@@ -174,10 +177,17 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
                 print(f'  simulated {len(truth) / 60:5.1f} of {seconds / 60:.0f} min, '
                       f'{len(forecasts)} forecasts kept', file=sys.stderr, flush=True)
                 last_report = time.monotonic()
+        if stop_simulator is not None:
+            stop_simulator()
+            heard_before, deadline = len(ready), time.monotonic() + 5.0
+            while len(ready) == heard_before and time.monotonic() < deadline:
+                rclpy.spin_once(node, timeout_sec=0.1)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    return truth, forecasts, heard
+    status = {kv.key: kv.value for array in ready[-1:] for s in array.status
+              if s.name.endswith(': forecast') for kv in s.values}
+    return truth, forecasts, heard, status
 
 
 def model_states(values, msg) -> np.ndarray:
@@ -314,13 +324,15 @@ def main(argv=None) -> int:
     except FileNotFoundError as exc:
         sys.exit(f'demo: error: {exc}')
     kept = re_forecaster(args.horizon, plan_timeout)
+    running = []   # the simulator's process, once started
     with Children() as children:
         if recorder is not None:
             children.start(recorder, 'recorder')
         children.start(predictor, 'predictor')
-        truth, forecasts, heard = collect(seconds, args.speed_up, args.evaluate_every,
-                                          lambda: children.start(simulator, 'simulator'),
-                                          plan, kept)
+        truth, forecasts, heard, status = collect(
+            seconds, args.speed_up, args.evaluate_every,
+            lambda: running.append(children.start(simulator, 'simulator')), plan, kept,
+            lambda: [stop_group(process) for process in running])
     figures, pairs = evaluate(truth, forecasts)
     if figures is None:
         print(f'demo: error: no forecast matured ({len(forecasts)} forecasts, {len(truth)} s '
@@ -328,6 +340,9 @@ def main(argv=None) -> int:
         return 1
     figures['live_vs_offline'] = compare(kept, [p[1] for p in pairs], since=START + heard[0])
     figures['online'] = online_figures(heard, kept)
+    figures['online']['predictor'] = {k: status.get(k) for k in (
+        'forecasts_published', 'states_skipped_as_backlog', 'forecasts_before_sample_complete',
+        'forecast_latency_p50_ms', 'forecast_latency_p99_ms')}
     how = 'latest controls held' if plan is None else 'following the applied control plan'
     print(f'demo: {figures["forecasts_evaluated"]} forecasts of {figures["horizon_steps"]} '
           f'steps ({how}) against the simulator\'s truth (model {figures["model_id"]})')
