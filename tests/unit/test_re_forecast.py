@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from hybrid_models.engine import Forecaster
+from hybrid_predictor.held_wind import forecast_holding_wind
 from hybrid_predictor.node import default_model_path
 from hybrid_predictor.plan_message import control_plan
 from hybrid_predictor.re_forecast import (
@@ -79,14 +80,15 @@ def forecast_message(run, hybrid_flu, x, y, **fields):
 def test_the_offline_window_and_plan_are_the_datasets_for_the_same_run(run):
     # The same forecast cut from the simulator's arrays by the dataset convention
     # (hybrid_models.data): window z[te-59..te], controls from the plan row at te on,
-    # the wind held at its last measurement (the plan names the actuators only).
+    # the wind held at its last measurement over the earth (the plan names the
+    # actuators only).
     a, spec = run.arrays, run.vessel
     window = slice(T_END - run.engine.window + 1, T_END + 1)
     z = np.column_stack([a[s][window] for s in spec.state_names])
     c = np.column_stack([a[s][window] for s in spec.control_names])
     future = np.tile(c[-1], (HORIZON, 1))
     future[:, :3] = run.plan[T_END:T_END + HORIZON]
-    expected = run.engine.forecast(z, c, future[None]).hybrid[0]
+    expected = forecast_holding_wind(run.engine, z, c, future[None], [True])[0].hybrid[0]
 
     hybrid, x, y = kept(run).offline(forecast_message(run, 0, 0, 0))
     frd = frames.states_flu_to_frd(hybrid, spec.state_names)

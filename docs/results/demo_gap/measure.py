@@ -11,10 +11,13 @@ another demo (run 0 is the demo itself), so the spread over runs is the one-run
 variance. For every forecast the future controls are taken several ways:
 
   card        the measured future actuators and wind (the model card's test runs)
-  demo        the plan's set-points, the wind held at its last measurement (the demo)
+  demo        the plan's set-points, the wind held at its last measurement relative to
+              the bow (the predictor until issue #27)
   plan+wind   the plan's set-points with the measured future wind
   held_earth  the plan's set-points, the wind held constant in the earth frame (its
               direction relative to the bow turned with the true heading change)
+  predictor   the plan's set-points, the wind held over the earth as the predictor now
+              holds it (``hybrid_predictor.held_wind``: turned with the forecast heading)
 
 and scored with the model card's trajectory error (``hybrid_models.metrics``: both
 tracks dead-reckoned from the origin) and, for ``demo``, with the demo's own (the
@@ -68,6 +71,7 @@ def demo_plans(runs: int, seconds: int) -> np.ndarray:
 def forecasts(engine, d, spec, plans, starts, horizon):
     """Score each start's forecasts under every assumption; return errors (m) per variant."""
     from hybrid_models.metrics import trajectory_errors
+    from hybrid_predictor.held_wind import forecast_holding_wind
     from hybrid_predictor.plans import track
 
     z = np.stack([d[s] for s in spec.state_names], -1)
@@ -93,6 +97,10 @@ def forecasts(engine, d, spec, plans, starts, horizon):
             true = truth[k, te + 1:te + 1 + horizon]
             for name, fut in variants.items():
                 pred = engine.forecast(*window, fut[None]).hybrid[0]
+                if name == 'demo':   # the same plan, its wind held as the predictor does
+                    now = forecast_holding_wind(engine, *window, fut[None], [True])[0]
+                    out.setdefault('predictor', []).append(
+                        (k, te, trajectory_errors(now.hybrid, true[None], spec)[0]))
                 out.setdefault(name, []).append(
                     (k, te, trajectory_errors(pred[None], true[None], spec)[0]))
                 if name == 'demo':   # the demo's own error: published track vs truth
@@ -183,7 +191,7 @@ def main() -> int:
     result['manoeuvres'] = {'demo_plans': manoeuvres(demo, spec, starts, horizon),
                             'own_operator': manoeuvres(own, spec, card_starts, horizon)}
     args.out.mkdir(parents=True, exist_ok=True)
-    plot({k: per_run[k] for k in ('card', 'plan+wind', 'held_earth', 'demo')},
+    plot({k: per_run[k] for k in ('card', 'plan+wind', 'held_earth', 'predictor', 'demo')},
          args.out / 'per_run.png')
     (args.out / 'results.json').write_text(json.dumps(result, indent=1))
     print(json.dumps(result, indent=1))

@@ -56,6 +56,7 @@ from hybrid_models.checkpoint_format import CheckpointError
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import reported_steps
 from hybrid_predictor.health import Health
+from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
@@ -432,22 +433,25 @@ class PredictorNode(Node):
         self.health.record_window(result.status, result.reason, result.fill)
         return result
 
-    def _future_controls(self, result, plan) -> tuple[np.ndarray, Assumed]:
-        """Return the future controls (1, H, n) of the published forecast and what they are."""
+    def _future_controls(self, result, plan) -> tuple[np.ndarray, Assumed, bool]:
+        """Return the future controls (1, H, n), what they are, whether they hold the wind."""
         if plan is not None:
             msg, matrix = plan
             rows, why = plan_rows(matrix, messages.seconds_from_stamp(msg.header.stamp),
                                   result.t_end, self.spec.dt, self.horizon,
                                   self.p['plan_timeout'])
             if rows is not None:
-                return plan_controls(rows, result.controls[-1])[None], followed(msg)
+                return (plan_controls(rows, result.controls[-1])[None], followed(msg),
+                        holds_wind(self.spec, rows))
             if why:
                 self._say('stale_plan', f'ignoring {self.plan_topic} {why}')
-        return hold_latest(result.controls[-1], self.horizon), Assumed()
+        return (hold_latest(result.controls[-1], self.horizon), Assumed(),
+                holds_wind(self.spec, None))
 
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
-        future, assumed = self._future_controls(result, plan)
-        forecast = self.engine.forecast(result.states, result.controls, future)
+        future, assumed, held = self._future_controls(result, plan)
+        forecast, future = forecast_holding_wind(self.engine, result.states, result.controls,
+                                                 future, [held])
         (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics,
                                          [assumed])
         problem = self._withheld(forecast.hybrid, msg)
@@ -594,8 +598,10 @@ class PredictorNode(Node):
         if not result.ready:
             return False, f'no forecast: {result.reason}', []
         future = np.stack([plan_controls(m, result.controls[-1]) for m in matrices])
+        held = [holds_wind(self.spec, m) for m in matrices]
         with self.batch_lock:
-            forecast = self.engine.forecast(result.states, result.controls, future)
+            forecast, _ = forecast_holding_wind(self.engine, result.states, result.controls,
+                                                future, held)
         out = self._forecast_messages(result, forecast.hybrid, forecast.physics,
                                       [followed(plan) for plan in plans])
         for i, msg in enumerate(out):

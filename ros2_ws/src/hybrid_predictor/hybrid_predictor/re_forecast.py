@@ -6,8 +6,9 @@ A ``ReForecast`` keeps what a predictor was given -- the messages of its input t
 published Forecast messages from them: the window the node assembles
 (``InputWindow.of_node``, the node's own parameters), the future controls it assumed
 (the plan the forecast names, ``plans.plan_rows``, or the latest controls held) and the
-same checkpoint's ``Forecaster``. Messages may be rclpy's (a live client) or rosbags'
-(a recorded bag, ``bag_re_forecast``): only their fields are read.
+same checkpoint's ``Forecaster``, through ``held_wind.forecast_holding_wind`` as the
+node. Messages may be rclpy's (a live client) or rosbags' (a recorded bag,
+``bag_re_forecast``): only their fields are read.
 
 ``difference`` gives, for one forecast, the largest absolute difference live minus
 offline of every state (the message's units) and of the published track (m). Both run
@@ -32,6 +33,7 @@ from vessel_datasets.topic_map import TopicMap
 from vessel_datasets.topic_messages import channel_reader
 from vessel_physics import frames
 
+from .held_wind import forecast_holding_wind, holds_wind
 from .input_window import InputWindow
 from .plans import PlanLimits, check_plan, hold_latest, plan_controls, plan_rows, track
 
@@ -131,11 +133,11 @@ class ReForecast:
                 window.push(topic, times[k], rows[k])
         return window.assemble(now=t_end)
 
-    def future(self, forecast, result) -> np.ndarray:
-        """Return the future controls (1, H, n_control) ``forecast`` assumed."""
+    def future(self, forecast, result) -> tuple[np.ndarray, bool]:
+        """Return the future controls (1, H, n_control) ``forecast`` assumed, wind held."""
         horizon, latest = int(forecast.horizon), result.controls[-1]
         if str(forecast.controls_assumed) != CONTROLS_PLAN:
-            return hold_latest(latest, horizon)
+            return hold_latest(latest, horizon), holds_wind(self.spec, None)
         key = (seconds_of(forecast.plan_stamp), str(forecast.plan_id))
         plan = self.plans.get(key)
         if plan is None:
@@ -146,7 +148,7 @@ class ReForecast:
         rows, why = plan_rows(matrix, key[0], result.t_end, self.spec.dt, horizon, math.inf)
         if rows is None:
             raise ReForecastError(f'its plan does not cover it: {why or "starts later"}')
-        return plan_controls(rows, latest)[None]
+        return plan_controls(rows, latest)[None], holds_wind(self.spec, rows)
 
     def offline(self, forecast) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """
@@ -170,8 +172,9 @@ class ReForecast:
         if not math.isclose(result.t_end, t_end, abs_tol=1e-6):
             raise ReForecastError(f'the kept states end at {result.t_end:.3f} s, the '
                                   f'forecast at {t_end:.3f} s')
-        hybrid = self.engine.forecast(result.states, result.controls,
-                                      self.future(forecast, result)).hybrid
+        future, held = self.future(forecast, result)
+        hybrid = forecast_holding_wind(self.engine, result.states, result.controls, future,
+                                       [held])[0].hybrid
         north, east, _ = track(hybrid, result.pose, self.spec)
         x, y, _ = frames.position_ned_to_enu(north[0], east[0])
         return frames.states_frd_to_flu(hybrid[0], self.spec.state_names), x, y
