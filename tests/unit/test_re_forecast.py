@@ -10,12 +10,12 @@ from hybrid_predictor.held_wind import forecast_holding_wind
 from hybrid_predictor.node import default_model_path
 from hybrid_predictor.plan_message import control_plan
 from hybrid_predictor.re_forecast import (
-    CONTROLS_PLAN,
     ReForecast,
     ReForecastError,
     compare,
     predictor_defaults,
 )
+from hybrid_predictor_interfaces.msg import Forecast
 from vessel_datasets.topic_map import topic_map_for
 from vessel_datasets.topic_messages import MessageWriter, channel_values
 from vessel_description import load_vessel
@@ -70,7 +70,8 @@ def forecast_message(run, hybrid_flu, x, y, **fields):
     msg = SimpleNamespace(
         header=SimpleNamespace(stamp=m.stamp_from_seconds(START + T_END)), horizon=HORIZON,
         state_names=list(run.vessel.state_names), hybrid=np.ravel(hybrid_flu), x=x, y=y,
-        controls_assumed=CONTROLS_PLAN, plan_id='p1', plan_stamp=m.stamp_from_seconds(START),
+        controls_assumed=Forecast.CONTROLS_PLAN, plan_id='p1',
+        plan_stamp=m.stamp_from_seconds(START),
         model_id=run.engine.model_id, relative_threshold=0.15)
     for key, value in fields.items():
         setattr(msg, key, value)

@@ -77,9 +77,10 @@ def main(argv=None) -> int:
     from hybrid_models.checkpoint_format import CheckpointError
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.node import default_model_path
-    from hybrid_predictor.re_forecast import ReForecast, compare, predictor_defaults, seconds_of
+    from hybrid_predictor.re_forecast import ReForecast, compare, predictor_defaults
     from vessel_datasets.topic_map import TopicMapError, topic_map_for
     from vessel_description import VesselError, load_vessel
+    from vessel_ros_bridge.messages import seconds_from_stamp
 
     try:
         engine = Forecaster.from_checkpoint(args.model or default_model_path(),
@@ -100,7 +101,7 @@ def main(argv=None) -> int:
     print(f're_forecast: recomputing {len(forecasts)} forecasts', file=sys.stderr)
     summary = {'bag': str(args.bag), 'model_id': engine.model_id,
                'forecasts_recorded': len(forecasts),
-               **compare(re_forecast, forecasts, since=min(seconds_of(f.header.stamp)
+               **compare(re_forecast, forecasts, since=min(seconds_from_stamp(f.header.stamp)
                                                             for f in forecasts))}
     print(json.dumps(summary, indent=2))
     return 0 if summary['compared'] and summary['equal'] else 1

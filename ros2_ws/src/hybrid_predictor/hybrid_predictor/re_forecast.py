@@ -1,5 +1,5 @@
 """
-Re-forecast offline what the predictor node forecast live, and compare the two (no ROS).
+Re-forecast offline what the predictor node forecast live, and compare the two (no rclpy).
 
 A ``ReForecast`` keeps what a predictor was given -- the messages of its input topics
 (the vessel's topic map) and its ControlPlan messages -- and recomputes any of its
@@ -29,9 +29,11 @@ import math
 import numpy as np
 
 from hybrid_models.engine import Forecaster
+from hybrid_predictor_interfaces.msg import Forecast
 from vessel_datasets.topic_map import TopicMap
 from vessel_datasets.topic_messages import channel_reader
 from vessel_physics import frames
+from vessel_ros_bridge.messages import seconds_from_stamp
 
 from .held_wind import forecast_holding_wind, holds_wind
 from .input_window import InputWindow
@@ -45,7 +47,6 @@ TOLERANCE = 1e-5
 # The track (m) is dead-reckoned in float64 from those states and the window's pose:
 # equal inputs give it to ~1e-9 m; 1 mm is far below any pose difference.
 TRACK_TOLERANCE_M = 1e-3
-CONTROLS_PLAN = 'plan'   # Forecast.CONTROLS_PLAN (hybrid_predictor_interfaces)
 # A gap between kept samples longer than this many times the stream's usual spacing means
 # a message was not kept (a subscription matched late, a loss): the node may have had it.
 MISSED_SPACINGS = 1.5
@@ -53,11 +54,6 @@ MISSED_SPACINGS = 1.5
 
 class ReForecastError(ValueError):
     """A forecast cannot be recomputed from what was kept; the message says why."""
-
-
-def seconds_of(stamp) -> float:
-    """Return the seconds of a Time-like stamp (``sec``, ``nanosec``), as the node reads it."""
-    return stamp.sec + stamp.nanosec * 1e-9
 
 
 def predictor_defaults() -> dict:
@@ -104,14 +100,14 @@ class ReForecast:
         except (AttributeError, IndexError, TypeError, ValueError):
             return   # the node rejects it as malformed too
         times, rows = self.samples[topic]
-        t = seconds_of(msg.header.stamp)
+        t = seconds_from_stamp(msg.header.stamp)
         at = bisect_right(times, t)
         times.insert(at, t)
         rows.insert(at, values)
 
     def add_plan(self, msg) -> None:
         """Keep a ControlPlan message (the latest one of each stamp and plan id)."""
-        self.plans[(seconds_of(msg.header.stamp), str(msg.plan_id))] = msg
+        self.plans[(seconds_from_stamp(msg.header.stamp), str(msg.plan_id))] = msg
 
     def window_at(self, t_end: float):
         """
@@ -136,9 +132,9 @@ class ReForecast:
     def future(self, forecast, result) -> tuple[np.ndarray, bool]:
         """Return the future controls (1, H, n_control) ``forecast`` assumed, wind held."""
         horizon, latest = int(forecast.horizon), result.controls[-1]
-        if str(forecast.controls_assumed) != CONTROLS_PLAN:
+        if str(forecast.controls_assumed) != Forecast.CONTROLS_PLAN:
             return hold_latest(latest, horizon), holds_wind(self.spec, None)
-        key = (seconds_of(forecast.plan_stamp), str(forecast.plan_id))
+        key = (seconds_from_stamp(forecast.plan_stamp), str(forecast.plan_id))
         plan = self.plans.get(key)
         if plan is None:
             raise ReForecastError(f'the plan it followed (stamp {key[0]:.3f} s, id '
@@ -165,7 +161,7 @@ class ReForecast:
                                         math.isclose(sent, served, rel_tol=1e-9)):
             raise ReForecastError(f'forecast at relative threshold {sent:g}, the offline '
                                   f'engine serves {served}')
-        t_end = seconds_of(forecast.header.stamp)
+        t_end = seconds_from_stamp(forecast.header.stamp)
         result = self.window_at(t_end)
         if not result.ready:
             raise ReForecastError(f'no window at {t_end:.3f} s: {result.reason}')
@@ -190,7 +186,7 @@ class ReForecast:
         gap = np.abs(live - offline).max(axis=0)
         scale = np.abs(offline).max(axis=0) + 1e-3
         position = float(np.hypot(np.asarray(forecast.x) - x, np.asarray(forecast.y) - y).max())
-        return Difference(seconds_of(forecast.header.stamp),
+        return Difference(seconds_from_stamp(forecast.header.stamp),
                           dict(zip(names, gap.tolist(), strict=True)),
                           dict(zip(names, (gap / scale).tolist(), strict=True)), position)
 
@@ -225,7 +221,7 @@ def compare(re_forecast: ReForecast, forecasts, since: float | None = None) -> d
     the tolerated ``max_gap``, is one the keeper may have had. Once every subscription
     has matched, reliable delivery loses nothing.
     """
-    stamps = [seconds_of(msg.header.stamp) for msg in forecasts]
+    stamps = [seconds_from_stamp(msg.header.stamp) for msg in forecasts]
     since = -math.inf if since is None else since
     reach = (re_forecast.engine.window - 1) * re_forecast.spec.dt
     differences, skipped = [], {}

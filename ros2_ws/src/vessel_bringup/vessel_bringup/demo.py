@@ -39,6 +39,7 @@ from vessel_bringup.processes import Children, node_argv, rclpy_options, stop_gr
 STATES = ('u', 'v', 'p', 'r', 'phi')
 RECORDED = ('odom', 'actuators', 'wind', 'control_plan', 'forecast', 'odom_true')
 UNITS = ('m/s', 'm/s', 'rad/s', 'rad/s', 'rad')
+WINDOW_S, HORIZON_S = 60, 900   # the embedded model's window and the boat's horizon (s)
 START = 1_000_000.0   # stamp of simulated t = 0 (any fixed value; keeps stamps readable)
 
 
@@ -66,12 +67,13 @@ def parse_args(argv=None):
                              'directory (must not exist); re-forecast it with '
                              'offline/re_forecast.py --bag DIR')
     args = parser.parse_args(argv)
-    horizon_s = args.horizon or 900
-    if args.minutes * 60 <= horizon_s + 120 or not 0.01 <= args.speed_up <= 1000 or \
+    # Forecasts mature after the embedded model's window and the horizon (one-second steps).
+    needed = WINDOW_S + (args.horizon or HORIZON_S)
+    if args.minutes * 60 <= needed or not 0.01 <= args.speed_up <= 1000 or \
             args.evaluate_every < 1 or args.horizon < 0:
-        parser.error(f'--minutes must exceed {(horizon_s + 120) / 60:g} (window and horizon '
-                     f'of {horizon_s} s), --speed-up lie in [0.01, 1000], --evaluate-every be '
-                     f'>= 1, --horizon >= 0')
+        parser.error(f'--minutes must exceed {needed / 60:g} (window and horizon), '
+                     f'--speed-up lie in [0.01, 1000], --evaluate-every be >= 1, '
+                     f'--horizon >= 0')
     if args.record is not None and args.record.exists():
         parser.error(f'--record {args.record} exists; name a new directory')
     return args
