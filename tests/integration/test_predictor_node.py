@@ -40,8 +40,11 @@ class Inputs:
                             ('/vessel/wind', self.wind)):
             read = channel_reader(topic_map, topic)
             for msg in msgs:
+                # Up to t_end on every topic: samples heard after it would push the
+                # window's first ones out of the streams' keep span when the forecast is
+                # old (under load the predictor forecasts only some of the states).
                 t = m.seconds_from_stamp(msg.header.stamp)
-                if topic != '/vessel/odom' or t <= t_end:
+                if t <= t_end:
                     w.push(topic, t, read(msg))
         return w.assemble(now=t_end)
 
