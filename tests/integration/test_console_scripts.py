@@ -29,6 +29,7 @@ PROGRAMS = {
     'workflow': 'vessel_diagnosis',
     'record': 'vessel_recorder',
     'demo': 'vessel_bringup',
+    're_forecast': 'hybrid_predictor',
 }
 
 

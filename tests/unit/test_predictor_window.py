@@ -189,3 +189,20 @@ def test_a_message_with_none_of_the_mapped_joints_is_malformed():
                                               position=[1.0], velocity=[], effort=[])
     with pytest.raises(ValueError, match='carries none of the mapped fields'):
         read(foreign)
+
+
+def test_a_window_until_a_scheduled_state_ends_there_though_newer_states_arrived():
+    # The node forecasts the state whose actuators and wind it awaited; a newer state
+    # that arrived meanwhile, before its own actuators, must not end that window.
+    window = make()
+    fill(window, 0.0, 80.0)
+    window.push('/state', 81.0, state_at(81.0))   # its actuators and wind not yet here
+    newest, scheduled = window.assemble(now=81.0), window.assemble(now=81.0, until=80.0)
+    assert newest.t_end == 81.0 and scheduled.ready and scheduled.t_end == 80.0
+    grid = 80.0 - DT * np.arange(W - 1, -1, -1)
+    np.testing.assert_allclose(scheduled.states[:, 0], 5.0 + 0.01 * grid, atol=1e-9)
+    np.testing.assert_allclose(scheduled.controls[:, 0], 90.0 + grid)
+    assert scheduled.pose[0] == pytest.approx(5.0 * 80.0)
+    # The newest window holds the 80 s actuators over 81 s: what offline conversion of
+    # the complete messages would not give once the 81 s ones arrive.
+    assert newest.controls[-1, 0] == 90.0 + 80.0

@@ -22,5 +22,8 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='ROS 2 node serving hybrid ship-motion forecasts.',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['predictor = hybrid_predictor.node:main']},
+    entry_points={'console_scripts': [
+        'predictor = hybrid_predictor.node:main',
+        're_forecast = hybrid_predictor.bag_re_forecast:main',
+    ]},
 )

@@ -236,6 +236,23 @@ class InputWindow:
         self.stream_delays = {topic: sorted({self.delays.get(c, 0.0) for c in s.channels})
                               for topic, s in self.streams.items()}
 
+    @classmethod
+    def of_node(cls, topic_map: TopicMap, window: int, dt: float, p: dict,
+                labels: dict[str, str] | None = None) -> InputWindow:
+        """
+        Return the window the predictor node assembles, from its parameters ``p``.
+
+        ``p`` holds the node's values (``config/predictor.yaml``): max_gap, max_age,
+        max_future, restart_span, re_anchor_after, quaternion_tolerance. The node and the
+        offline re-forecast (``re_forecast``) build their windows here, so both judge
+        and assemble the same samples alike.
+        """
+        from .plausibility import Plausibility
+
+        return cls(topic_map, window, dt, p['max_gap'], p['max_age'], p['max_future'],
+                   p['restart_span'], Plausibility(topic_map, p['quaternion_tolerance']),
+                   re_anchor_after=p['re_anchor_after'], labels=labels)
+
     def configure(self, max_gap: float, max_age: float, max_future: float,
                   restart_span: float, re_anchor_after: float | None = None) -> None:
         """Set the time limits (s); the node calls it again when a parameter changes."""
@@ -327,12 +344,20 @@ class InputWindow:
         return {reason: sum(getattr(s.counts, reason) for s in self.streams.values())
                 for reason in REJECTIONS}
 
-    def assemble(self, now: float) -> Window:
-        """Build the window ending at the newest state sample, or say why it cannot."""
+    def assemble(self, now: float, until: float | None = None) -> Window:
+        """
+        Build the window ending at the newest state sample, or say why it cannot.
+
+        ``until`` (s) ends it at that state sample instead: the one a forecast was
+        scheduled for and whose actuator and wind samples were awaited, where a newer
+        state may have arrived meanwhile without its own.
+        """
         t_end = self.streams[self.state_topic].latest_time
         if t_end is None:
             return Window(False, 'incomplete', f'no {self.state_topic} received', 0.0, None,
                           None)
+        if until is not None:
+            t_end = min(t_end, until)
         t_end -= self.lag
         age = now - self.lines.offset - t_end
         grid = t_end - self.dt * np.arange(self.window - 1, -1, -1, dtype=float)

@@ -56,6 +56,7 @@ from hybrid_models.checkpoint_format import CheckpointError
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import reported_steps
 from hybrid_predictor.health import Health
+from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
@@ -65,9 +66,10 @@ from hybrid_predictor.plans import (
     check_plan,
     hold_latest,
     plan_controls,
+    plan_rows,
     track,
 )
-from hybrid_predictor.plausibility import Plausibility, forecast_problem
+from hybrid_predictor.plausibility import forecast_problem
 from hybrid_predictor.schedule import ForecastSchedule
 from hybrid_predictor.skill import LiveSkill, Settings
 from hybrid_predictor.vessel_source import served_vessel
@@ -147,10 +149,8 @@ class PredictorNode(Node):
         self.resolved = {topic: self.resolve_topic_name(node_topic(topic))
                          for topic in self.topic_map.topics}
         self.plan_topic = self.resolve_topic_name(PLAN_TOPIC)
-        self.window = InputWindow(self.topic_map, window, self.spec.dt, p['max_gap'],
-                                  p['max_age'], p['max_future'], p['restart_span'],
-                                  Plausibility(self.topic_map, p['quaternion_tolerance']),
-                                  re_anchor_after=p['re_anchor_after'], labels=self.resolved)
+        self.window = InputWindow.of_node(self.topic_map, window, self.spec.dt, p,
+                                          labels=self.resolved)
         self.bounded = bool(np.isfinite(self.engine.bound).all())
         threshold = self.engine.relative_threshold
         self.relative_threshold = math.nan if threshold is None else float(threshold)
@@ -182,7 +182,7 @@ class PredictorNode(Node):
         self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
                        0, 'clock_resets': 0, 'service_requests': 0, 'service_busy': 0,
-                       'service_failed': 0}
+                       'service_failed': 0, 'forecasts_before_sample_complete': 0}
         self.latest_plan: tuple[ControlPlan, dict] | None = None
         self.pending: Pending | None = None
         # A scheduled state whose actuator or wind samples had not arrived when its wait
@@ -414,36 +414,44 @@ class PredictorNode(Node):
             pending, self.pending = self.pending, None
             if pending is None:
                 return
-            result = self._window()
+            # The scheduled state, whose samples were awaited: not a newer one that
+            # arrived meanwhile, perhaps before its actuators and wind.
+            result = self._window(until=pending.t)
             plan = self.latest_plan
-            if not result.ready and not self._synced(pending.t):
+            synced = self._synced(pending.t)
+            if not result.ready and not synced:
                 self.deferred = pending
         if result.ready:
+            # From a sample whose actuators or wind had not arrived when the wait was
+            # over: an offline re-forecast of the same messages (re_forecast) differs.
+            with self.count_lock:
+                self.counts['forecasts_before_sample_complete'] += not synced
             self._forecast_and_publish(result, plan, pending.received_ns)
 
-    def _window(self):
-        result = self.window.assemble(self._now())
+    def _window(self, until: float | None = None):
+        result = self.window.assemble(self._now(), until)
         self.health.record_window(result.status, result.reason, result.fill)
         return result
 
-    def _future_controls(self, result, plan) -> tuple[np.ndarray, Assumed]:
-        """Return the future controls (1, H, n) of the published forecast and what they are."""
+    def _future_controls(self, result, plan) -> tuple[np.ndarray, Assumed, bool]:
+        """Return the future controls (1, H, n), what they are, whether they hold the wind."""
         if plan is not None:
             msg, matrix = plan
-            age = result.t_end - messages.seconds_from_stamp(msg.header.stamp)
-            if 0.0 <= age <= self.p['plan_timeout']:
-                shift = int(round(age / self.spec.dt))
-                rows = matrix[shift:shift + self.horizon]
-                if len(rows) == self.horizon:
-                    return plan_controls(rows, result.controls[-1])[None], followed(msg)
-                self._say('stale_plan', f'ignoring {self.plan_topic} from {age:.1f} s '
-                                        f'before the forecast: {len(matrix) - shift} of its '
-                                        f'steps are left, need {self.horizon}')
-        return hold_latest(result.controls[-1], self.horizon), Assumed()
+            rows, why = plan_rows(matrix, messages.seconds_from_stamp(msg.header.stamp),
+                                  result.t_end, self.spec.dt, self.horizon,
+                                  self.p['plan_timeout'])
+            if rows is not None:
+                return (plan_controls(rows, result.controls[-1])[None], followed(msg),
+                        holds_wind(self.spec, rows))
+            if why:
+                self._say('stale_plan', f'ignoring {self.plan_topic} {why}')
+        return (hold_latest(result.controls[-1], self.horizon), Assumed(),
+                holds_wind(self.spec, None))
 
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
-        future, assumed = self._future_controls(result, plan)
-        forecast = self.engine.forecast(result.states, result.controls, future)
+        future, assumed, held = self._future_controls(result, plan)
+        forecast, future = forecast_holding_wind(self.engine, result.states, result.controls,
+                                                 future, [held])
         (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics,
                                          [assumed])
         problem = self._withheld(forecast.hybrid, msg)
@@ -590,8 +598,10 @@ class PredictorNode(Node):
         if not result.ready:
             return False, f'no forecast: {result.reason}', []
         future = np.stack([plan_controls(m, result.controls[-1]) for m in matrices])
+        held = [holds_wind(self.spec, m) for m in matrices]
         with self.batch_lock:
-            forecast = self.engine.forecast(result.states, result.controls, future)
+            forecast, _ = forecast_holding_wind(self.engine, result.states, result.controls,
+                                                future, held)
         out = self._forecast_messages(result, forecast.hybrid, forecast.physics,
                                       [followed(plan) for plan in plans])
         for i, msg in enumerate(out):

@@ -167,6 +167,28 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
     return matrix
 
 
+def plan_rows(matrix: np.ndarray, plan_start: float, t_end: float, dt: float,
+              horizon: int, timeout: float) -> tuple[np.ndarray | None, str]:
+    """
+    Return the rows of a plan a forecast from the window ending at ``t_end`` follows.
+
+    Row k of ``matrix`` (``check_plan``'s) holds the controls at ``plan_start + k dt``
+    (s, the plan's stamp); the forecast's first control is the one at ``t_end``, the
+    last window sample (``hybrid_models.data``). Return (rows (horizon, n_control), '');
+    (None, '') when ``t_end`` lies outside the plan's time, before its start or more
+    than ``timeout`` s after it; (None, why) when fewer than ``horizon`` rows are left.
+    """
+    age = t_end - plan_start
+    if not 0.0 <= age <= timeout:
+        return None, ''
+    shift = int(round(age / dt))
+    rows = matrix[shift:shift + horizon]
+    if len(rows) < horizon:
+        return None, (f'from {age:.1f} s before the forecast: {len(matrix) - shift} of '
+                      f'its steps are left, need {horizon}')
+    return rows, ''
+
+
 def plan_controls(matrix: np.ndarray, latest_control: np.ndarray) -> np.ndarray:
     """
     Return a checked plan's future controls (steps, n_control) for the model.
