@@ -7,7 +7,11 @@ workspace, starts the installed predictor with the snuboat vessel file and a tra
 checkpoint, publishes the bag's /sensor and /ctrl_fb_boat messages with the boat's own
 types at their recorded pace, and collects /vessel/forecast. Each published forecast is
 then recomputed offline from the same messages (the same input window code, the same
-compiled engine and bound) and the two are compared. Prints one JSON document.
+compiled engine and bound) and the two are compared. While the bag still plays, it asks
+the predictor's what-if service for forecasts of candidate plans in the boat's own
+controls (n_port, n_stbd, delta_port, delta_stbd), and sends a plan with a wrong unit,
+one with a wrong control name and one with a missing control, which must be refused.
+Prints one JSON document.
 
 usage (repo root, after `make setup` and docs/results/real/snuboat/run.sh):
   tools/with_env.sh python docs/results/real/snuboat/replay.py \\
@@ -86,6 +90,35 @@ def bag_messages(bag: Path, msg_dir: Path):
     return sorted(out, key=lambda m: m[0])
 
 
+def what_if_requests(vessel, horizon: int, shafts: dict, control_plan) -> list:
+    """
+    Return [(name, Predict request)]: eight candidate plans, then three malformed ones.
+
+    The candidates hold the shafts at ``shafts`` (rad/s, the latest measured) and sweep
+    both rudders over the boat's range; the malformed plans give a shaft speed in rpm,
+    name a control the boat does not have, and leave out the starboard rudder.
+    """
+    from hybrid_predictor_interfaces.srv import Predict
+
+    names = list(vessel.actuator_names)
+    rudder = vessel.actuator('delta_port')
+    plans = []
+    for delta in np.linspace(rudder.low, rudder.high, 8):
+        row = dict(shafts, delta_port=delta, delta_stbd=delta)
+        plans.append(control_plan(vessel, np.tile([row[a] for a in names], (horizon, 1)),
+                                  plan_id=f'rudder {delta:+.2f}'))
+    wrong_unit = control_plan(vessel, np.zeros((horizon, len(names))), plan_id='rpm')
+    wrong_unit.control_units[0] = 'rpm'
+    wrong_name = control_plan(vessel, np.zeros((horizon, len(names))), plan_id='name')
+    wrong_name.control_names[0] = 'n_centre'
+    missing = control_plan(vessel, np.zeros((horizon, len(names) - 1)), names[:-1],
+                           plan_id='missing')
+    return [('eight candidate plans', Predict.Request(plans=plans)),
+            ('a shaft speed in rpm', Predict.Request(plans=[wrong_unit])),
+            ('a control the boat does not have', Predict.Request(plans=[wrong_name])),
+            ('a control left out', Predict.Request(plans=[missing]))]
+
+
 def main() -> int:
     """Replay, collect, recompute, compare; print JSON."""
     parser = argparse.ArgumentParser(description=__doc__,
@@ -114,72 +147,103 @@ def main() -> int:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
     from snumsg_pkg.msg import Control, Sensor
+    from vessel_bringup.processes import Children, rclpy_options
 
     from hybrid_models.engine import Forecaster
-    from hybrid_predictor.input_window import InputWindow, channel_reader
+    from hybrid_predictor.input_window import InputWindow
+    from hybrid_predictor.plan_message import control_plan
     from hybrid_predictor_interfaces.msg import Forecast
-    from vessel_datasets.topic_map import topic_map_for
+    from hybrid_predictor_interfaces.srv import Predict
+    from vessel_datasets.topic_map import ACTUATOR_PREFIX, topic_map_for
+    from vessel_datasets.topic_messages import channel_reader
     from vessel_description import load_vessel
     from vessel_physics.frames import states_flu_to_frd
 
     messages = bag_messages(args.bag, args.msg_dir)
-    exe = REPO / 'ros2_ws/install/hybrid_predictor/lib/hybrid_predictor/predictor'
-    log = open(work / 'predictor.log', 'w')
-    predictor = subprocess.Popen([str(exe), '--ros-args', '-p', f'model_path:={args.model}',
-                                  '-p', 'vessel:=snuboat', '-p',
-                                  f'relative_threshold:={THRESHOLD}'], env=env, stdout=log,
-                                 stderr=subprocess.STDOUT, start_new_session=True)
-    rclpy.init()
-    node = rclpy.create_node('snuboat_replay')
-    forecasts = []
-    node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
-    pubs = {'/sensor': node.create_publisher(Sensor, '/sensor', 100),
-            '/ctrl_fb_boat': node.create_publisher(Control, '/ctrl_fb_boat', 100)}
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    deadline = time.monotonic() + 60
-    while 'compiled in' not in (work / 'predictor.log').read_text():
-        if time.monotonic() > deadline or predictor.poll() is not None:
-            sys.exit('replay: error: the predictor did not start: '
-                     + (work / 'predictor.log').read_text()[-1000:])
-        executor.spin_once(timeout_sec=0.2)
+    # The predictor is stopped however this block ends (an error, Ctrl-C, SIGTERM).
+    with Children(work) as children:
+        predictor = children.node('hybrid_predictor', 'predictor', params={
+            'model_path': str(args.model), 'vessel': 'snuboat',
+            'relative_threshold': THRESHOLD}, env=env)
+        rclpy.init(**rclpy_options())
+        node = rclpy.create_node('snuboat_replay')
+        forecasts = []
+        node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
+        client = node.create_client(Predict, '/vessel/predictor/predict')
+        pubs = {'/sensor': node.create_publisher(Sensor, '/sensor', 100),
+                '/ctrl_fb_boat': node.create_publisher(Control, '/ctrl_fb_boat', 100)}
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        deadline = time.monotonic() + 60
+        while 'compiled in' not in (work / 'predictor.log').read_text():
+            if time.monotonic() > deadline or predictor.poll() is not None:
+                sys.exit('replay: error: the predictor did not start: '
+                         + (work / 'predictor.log').read_text()[-1000:])
+            executor.spin_once(timeout_sec=0.2)
 
-    vessel = load_vessel('snuboat')
-    topic_map = topic_map_for(vessel)
-    readers = {t: channel_reader(topic_map, t) for t in TOPICS}
-    sent = []  # (wall time s, topic, channel values) as the predictor timed them
-    t0_bag, t0_wall = messages[0][0], time.monotonic()
-    for log_ns, topic, msg in messages:
-        if (log_ns - t0_bag) * 1e-9 > args.seconds:
-            break
-        while time.monotonic() - t0_wall < (log_ns - t0_bag) * 1e-9:
-            executor.spin_once(timeout_sec=0.002)
-        tick = Time(sec=int(msg.tick.sec), nanosec=int(msg.tick.nanosec))
-        if topic == '/sensor':
-            out = Sensor(tick=tick, status=msg.status, pose=[float(x) for x in msg.pose],
-                         vel=[float(x) for x in msg.vel])
-        else:
-            out = Control(tick=tick, ctrl=[float(x) for x in msg.ctrl])
-        pubs[topic].publish(out)
-        try:
-            sent.append((time.time(), topic, readers[topic](msg)))
-        except ValueError:
-            pass
-    end = time.monotonic() + 3
-    while time.monotonic() < end:
-        executor.spin_once(timeout_sec=0.05)
-    predictor.terminate()
-    predictor.wait(10)
+        vessel = load_vessel('snuboat')
+        topic_map = topic_map_for(vessel)
+        readers = {t: channel_reader(topic_map, t) for t in TOPICS}
+        sent = []  # (wall time s, topic, channel values) as the predictor timed them
+        t0_bag, t0_wall = messages[0][0], time.monotonic()
+        asks, answers, pending = None, {}, None
+        for log_ns, topic, msg in messages:
+            if (log_ns - t0_bag) * 1e-9 > args.seconds:
+                break
+            if asks is None and forecasts:
+                # The predictor forecasts, so its window is full: ask while the bag plays.
+                latest = {k: v for _, t, values in sent if t == '/ctrl_fb_boat'
+                          for k, v in values.items()}
+                asks = what_if_requests(vessel, forecasts[0].horizon,
+                                        {k: latest[ACTUATOR_PREFIX + k]
+                                         for k in ('n_port', 'n_stbd')}, control_plan)
+            if pending is None and asks:
+                name, request = asks.pop(0)
+                pending = (name, client.call_async(request))
+            if pending is not None and pending[1].done():
+                answers[pending[0]] = pending[1].result()
+                pending = None
+            while time.monotonic() - t0_wall < (log_ns - t0_bag) * 1e-9:
+                executor.spin_once(timeout_sec=0.002)
+            tick = Time(sec=int(msg.tick.sec), nanosec=int(msg.tick.nanosec))
+            if topic == '/sensor':
+                out = Sensor(tick=tick, status=msg.status, pose=[float(x) for x in msg.pose],
+                             vel=[float(x) for x in msg.vel])
+            else:
+                out = Control(tick=tick, ctrl=[float(x) for x in msg.ctrl])
+            pubs[topic].publish(out)
+            try:
+                sent.append((time.time(), topic, readers[topic](msg)))
+            except ValueError:
+                pass
+        end = time.monotonic() + 3
+        while time.monotonic() < end or ((asks or pending) and time.monotonic() < end + 30):
+            executor.spin_once(timeout_sec=0.05)
+            if pending is not None and pending[1].done():
+                answers[pending[0]] = pending[1].result()
+                pending = None
+            if pending is None and asks:
+                name, request = asks.pop(0)
+                pending = (name, client.call_async(request))
+    what_if = {name: {'success': a.success, 'message': a.message,
+                      'forecasts': len(a.forecasts),
+                      'control_names': list(a.forecasts[0].control_names)
+                      if a.forecasts else None,
+                      'finite': bool(all(np.isfinite(f.hybrid).all() for f in a.forecasts))}
+               for name, a in answers.items()}
 
     engine = Forecaster.from_checkpoint(args.model, THRESHOLD)
     diffs, scale = [], None
     for fc in forecasts:
         t_end = fc.header.stamp.sec + fc.header.stamp.nanosec * 1e-9
         window = InputWindow(topic_map, engine.window, vessel.dt, 2.5, 5.0)
+        # A forecast is stamped at its newest state's time minus the map's delay: the
+        # samples it was made from reach that far beyond its stamp.
+        newest = t_end + window.lag + 0.05
         for t, topic, values in sent:
-            if t <= t_end + 0.05 and not (topic == '/sensor' and t > t_end + 0.05):
+            if t <= newest:
                 window.push(topic, t, values)
-        result = window.assemble(now=t_end)
+        result = window.assemble(now=newest)
         if not result.ready:
             continue
         future = np.broadcast_to(result.controls[-1], (1, fc.horizon, vessel.n_control))
@@ -193,6 +257,8 @@ def main() -> int:
         'bag': args.bag.name, 'replayed_s': args.seconds,
         'messages_published': len([s for s in sent]), 'forecasts_published': len(forecasts),
         'forecasts_compared': int(len(diffs)),
+        'forecasts_within_1e-3': None if not len(diffs) else
+        int((diffs.max(axis=1) < 1e-3).sum()),
         'state_names': list(forecasts[0].state_names) if forecasts else None,
         'control_names': list(forecasts[0].control_names) if forecasts else None,
         'max_relative_difference_online_vs_offline': None if not len(diffs) else
@@ -200,6 +266,7 @@ def main() -> int:
         'median_relative_difference': None if not len(diffs) else
         dict(zip(vessel.state_names, np.median(diffs, axis=0).round(6).tolist(),
                  strict=True)),
+        'what_if': what_if,
     }, indent=2))
     node.destroy_node()
     rclpy.shutdown()
