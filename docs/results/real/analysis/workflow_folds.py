@@ -23,12 +23,12 @@ import sys
 import numpy as np
 
 from hybrid_models.checkpoint import load_model
-from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
+from hybrid_models.data import forecast_windows, load_runs
 from hybrid_models.evaluation import PhysicsOnly
 from hybrid_models.metrics import forecast_metrics
 from hybrid_models.models import predict
 from hybrid_models.nets import HybridModel
-from hybrid_models.studies.crossval import Fold, run_dir
+from hybrid_models.studies.crossval import Fold, read_study, run_dir
 from hybrid_models.training.train import MODEL_FILE
 from vessel_datasets.format import read_dataset
 
@@ -46,12 +46,14 @@ def rudder_range(runs, spec) -> float:
     return float(np.degrees(max(np.abs(r.c[:, rudders]).max() for r in runs)))
 
 
-def fold_rows(study: Path, fold: Fold, hybrids: list[str], seeds: list[int]) -> list[dict]:
-    """One row per test run of ``fold`` that is long enough for one forecast."""
-    spec = read_dataset(fold.path).vessel
-    window, horizon, stride = evaluation_protocol(spec, None, None, None)
+def fold_rows(study: Path, fold: Fold, hybrids: list[str], protocol: dict, spec
+              ) -> list[dict]:
+    """One row per test run of ``fold`` long enough for one forecast of the study's."""
+    window, horizon, stride = (protocol[k] for k in ('window', 'horizon', 'stride'))
     models = {label: [load_model(run_dir(study, label, fold, s) / MODEL_FILE)[0]
-                      for s in seeds] for label in hybrids}
+                      for s in protocol['seeds']] for label in hybrids}
+    for label, members in models.items():
+        assert all(isinstance(m, HybridModel) for m in members), f'{label} is not a hybrid'
     trained = rudder_range(load_runs(fold.path, 'train', spec), spec)
     runs = [r for r in load_runs(fold.path, 'test', spec) if r.length >= window + horizon]
     # One forecast call per model for the whole fold: each new batch shape compiles anew.
@@ -65,11 +67,10 @@ def fold_rows(study: Path, fold: Fold, hybrids: list[str], seeds: list[int]) -> 
         own = windows.subset(mine)
         row = {'fold': fold.index, 'run': run.run_id, 'forecasts': len(own),
                'rudder_deg': rudder_range([run], spec), 'trained_rudder_deg': trained}
-        for label, members in models.items():
-            assert isinstance(members[0], HybridModel), f'{label} is not a hybrid'
+        for label in models:
             per_seed = [at_horizon(p[mine], own, spec) for p in preds[label]]
             row[label] = {'mean': float(np.mean(per_seed)),
-                          'sd': float(np.std(per_seed, ddof=1)) if len(seeds) > 1 else 0.0,
+                          'sd': float(np.std(per_seed, ddof=1)) if len(per_seed) > 1 else 0.0,
                           'ensemble': at_horizon(np.mean(preds[label], axis=0)[mine], own,
                                                  spec),
                           'physics_alone': at_horizon(alone[label][mine], own, spec)}
@@ -108,18 +109,16 @@ def main(argv: list[str]) -> int:
         print(__doc__, file=sys.stderr)
         return 2
     study, out = Path(argv[0]), Path(argv[1])
-    result = json.loads((study / 'results.json').read_text())
-    seeds = result['protocol']['seeds']
+    folds, result = read_study(study)
+    protocol = result['protocol']
+    spec = read_dataset(folds[0].path).vessel
     hybrids = [row['label'] for row in result['rows'] if 'physics' in row]
     rows = []
-    for described in result['folds']:
-        fold = Fold(described['index'], study / 'folds' / f"fold{described['index']}",
-                    *(tuple(described[s]) for s in ('train', 'val', 'test')))
-        rows += fold_rows(study, fold, hybrids, seeds)
+    for fold in folds:
+        rows += fold_rows(study, fold, hybrids, protocol, spec)
         print(f'fold {fold.index}: {len(rows)} runs so far', file=sys.stderr, flush=True)
     out.mkdir(parents=True, exist_ok=True)
-    spec = read_dataset(study / 'folds' / 'fold0').vessel
-    horizon_s = evaluation_protocol(spec, None, None, None)[1] * spec.dt
+    horizon_s = protocol['horizon'] * spec.dt
     (out / 'folds.json').write_text(json.dumps(rows, indent=2))
     (out / 'folds.md').write_text(markdown(rows, hybrids, horizon_s))
     print(markdown(rows, hybrids, horizon_s))
