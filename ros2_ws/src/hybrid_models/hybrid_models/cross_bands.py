@@ -39,9 +39,12 @@ class HeldOut:
 def note_of(held_out: list[HeldOut], relative_threshold) -> str:
     """Return what the cross-validated bands were calibrated on, as one phrase."""
     forecasts = sum(len(h.pred) for h in held_out)
-    runs = len({run for h in held_out for run in h.runs})
-    return (f'cross-validated over {len(held_out)} folds, {forecasts} forecasts of {runs} '
-            f'runs at relative threshold {relative_threshold}')
+    return (f'cross-validated over {len(held_out)} folds, {forecasts} forecasts of '
+            f'{_runs(held_out)} runs at relative threshold {relative_threshold}')
+
+
+def _runs(held_out: list[HeldOut]) -> int:
+    return len({run for h in held_out for run in h.runs})
 
 
 def _pooled(held_out: list[HeldOut]) -> tuple[np.ndarray, np.ndarray]:
@@ -67,7 +70,7 @@ def cross_calibrate(held_out: list[HeldOut], spec, relative_threshold, levels=LE
     pred, true = _pooled(held_out)
     return calibrate(pred, true, spec, relative_threshold, levels, source={
         'split': 'out-of-fold', 'folds': len(held_out),
-        'runs': len({run for h in held_out for run in h.runs}),
+        'runs': _runs(held_out),
         'note': note_of(held_out, relative_threshold), **(source or {})})
 
 
@@ -98,8 +101,6 @@ def held_out_coverage(held_out: list[HeldOut], spec, relative_threshold,
             'states': {name: mean(lambda c, n=name: c['states'][n]) for name in first['states']},
             'position': mean(lambda c: c['position']),
             'forecasts': int(sum(c['forecasts'] for c in per_fold)), 'per_fold': per_fold}
-
-
 
 
 def least_covered(cover: dict, level: float) -> tuple[float, str, int]:
