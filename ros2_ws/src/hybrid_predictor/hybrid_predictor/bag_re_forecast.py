@@ -33,9 +33,10 @@ def parse_args(argv):
     parser.add_argument('--model', type=Path, default=None,
                         help="checkpoint the predictor served (default: the predictor's "
                              'embedded model)')
-    parser.add_argument('--vessel', default='patrol_boat',
-                        help='vessel file (name or path) whose topic map the predictor read '
-                             '(default patrol_boat)')
+    parser.add_argument('--vessel', default='',
+                        help="the predictor's vessel parameter, if it was set: a vessel file "
+                             '(name or path) whose topic map it read (default: as the '
+                             "predictor, the model's vessel)")
     parser.add_argument('--namespace', default=NAMESPACE,
                         help=f'namespace of the forecast and plan topics (default {NAMESPACE})')
     parser.add_argument('--relative-threshold', type=float, default=None,
@@ -78,14 +79,15 @@ def main(argv=None) -> int:
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.node import default_model_path
     from hybrid_predictor.re_forecast import ReForecast, compare, predictor_defaults
+    from hybrid_predictor.vessel_source import served_vessel
     from vessel_datasets.topic_map import TopicMapError, topic_map_for
-    from vessel_description import VesselError, load_vessel
+    from vessel_description import VesselError
     from vessel_ros_bridge.messages import seconds_from_stamp
 
     try:
-        engine = Forecaster.from_checkpoint(args.model or default_model_path(),
-                                            args.relative_threshold)
-        topic_map = topic_map_for(load_vessel(args.vessel))
+        model = args.model or default_model_path()
+        engine = Forecaster.from_checkpoint(model, args.relative_threshold)
+        topic_map = topic_map_for(served_vessel(args.vessel, engine.spec, str(model))[0])
         re_forecast = ReForecast(engine, topic_map, predictor_defaults())
         namespace = '/' + args.namespace.strip('/')
         forecasts = read_bag(args.bag, re_forecast, f'{namespace}/forecast',
