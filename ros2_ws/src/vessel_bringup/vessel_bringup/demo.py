@@ -39,7 +39,7 @@ from vessel_bringup.processes import Children, node_argv, rclpy_options, stop_gr
 STATES = ('u', 'v', 'p', 'r', 'phi')
 RECORDED = ('odom', 'actuators', 'wind', 'control_plan', 'forecast', 'odom_true')
 UNITS = ('m/s', 'm/s', 'rad/s', 'rad/s', 'rad')
-WINDOW_S, HORIZON_S = 60, 900   # the embedded model's window and the boat's horizon (s)
+VESSEL = 'patrol_boat'   # what the simulator sails by default and the embedded model serves
 START = 1_000_000.0   # stamp of simulated t = 0 (any fixed value; keeps stamps readable)
 
 
@@ -67,8 +67,11 @@ def parse_args(argv=None):
                              'directory (must not exist); re-forecast it with '
                              'offline/re_forecast.py --bag DIR')
     args = parser.parse_args(argv)
-    # Forecasts mature after the embedded model's window and the horizon (one-second steps).
-    needed = WINDOW_S + (args.horizon or HORIZON_S)
+    # Forecasts mature after the window and the horizon of the vessel file.
+    from vessel_description import load_vessel
+
+    vessel = load_vessel(VESSEL)
+    needed = vessel.window_s + (args.horizon * vessel.dt if args.horizon else vessel.horizon_s)
     if args.minutes * 60 <= needed or not 0.01 <= args.speed_up <= 1000 or \
             args.evaluate_every < 1 or args.horizon < 0:
         parser.error(f'--minutes must exceed {needed / 60:g} (window and horizon), '
@@ -149,7 +152,7 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
             next_kept[0] = t + every
 
     if plan is not None:
-        plan_message = control_plan(load_vessel('patrol_boat'), plan,
+        plan_message = control_plan(load_vessel(VESSEL), plan,
                                     stamp=m.stamp_from_seconds(START))
         if kept is not None:
             kept.add_plan(plan_message)
@@ -291,7 +294,7 @@ def re_forecaster(horizon: int, plan_timeout: float):
 
     parameters = dict(predictor_defaults(), horizon=horizon, plan_timeout=plan_timeout)
     return ReForecast(Forecaster.from_checkpoint(default_model_path()),
-                      topic_map_for(load_vessel('patrol_boat')), parameters)
+                      topic_map_for(load_vessel(VESSEL)), parameters)
 
 
 def recorder_argv(out: Path) -> list[str]:
