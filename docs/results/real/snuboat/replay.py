@@ -152,6 +152,7 @@ def main() -> int:
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.input_window import InputWindow
     from hybrid_predictor.plan_message import control_plan
+    from hybrid_predictor.re_forecast import predictor_defaults
     from hybrid_predictor_interfaces.msg import Forecast
     from hybrid_predictor_interfaces.srv import Predict
     from vessel_datasets.topic_map import ACTUATOR_PREFIX, topic_map_for
@@ -187,6 +188,17 @@ def main() -> int:
         sent = []  # (wall time s, topic, channel values) as the predictor timed them
         t0_bag, t0_wall = messages[0][0], time.monotonic()
         asks, answers, pending = None, {}, None
+
+        def serve_asks() -> None:
+            # One what-if request in flight: keep the answer of a finished one, send the next.
+            nonlocal pending
+            if pending is not None and pending[1].done():
+                answers[pending[0]] = pending[1].result()
+                pending = None
+            if pending is None and asks:
+                name, request = asks.pop(0)
+                pending = (name, client.call_async(request))
+
         for log_ns, topic, msg in messages:
             if (log_ns - t0_bag) * 1e-9 > args.seconds:
                 break
@@ -197,12 +209,7 @@ def main() -> int:
                 asks = what_if_requests(vessel, forecasts[0].horizon,
                                         {k: latest[ACTUATOR_PREFIX + k]
                                          for k in ('n_port', 'n_stbd')}, control_plan)
-            if pending is None and asks:
-                name, request = asks.pop(0)
-                pending = (name, client.call_async(request))
-            if pending is not None and pending[1].done():
-                answers[pending[0]] = pending[1].result()
-                pending = None
+            serve_asks()
             while time.monotonic() - t0_wall < (log_ns - t0_bag) * 1e-9:
                 executor.spin_once(timeout_sec=0.002)
             tick = Time(sec=int(msg.tick.sec), nanosec=int(msg.tick.nanosec))
@@ -219,12 +226,7 @@ def main() -> int:
         end = time.monotonic() + 3
         while time.monotonic() < end or ((asks or pending) and time.monotonic() < end + 30):
             executor.spin_once(timeout_sec=0.05)
-            if pending is not None and pending[1].done():
-                answers[pending[0]] = pending[1].result()
-                pending = None
-            if pending is None and asks:
-                name, request = asks.pop(0)
-                pending = (name, client.call_async(request))
+            serve_asks()
     what_if = {name: {'success': a.success, 'message': a.message,
                       'forecasts': len(a.forecasts),
                       'control_names': list(a.forecasts[0].control_names)
@@ -233,10 +235,11 @@ def main() -> int:
                for name, a in answers.items()}
 
     engine = Forecaster.from_checkpoint(args.model, THRESHOLD)
+    parameters = predictor_defaults()   # the window the node assembles, with its defaults
     diffs, scale = [], None
     for fc in forecasts:
         t_end = fc.header.stamp.sec + fc.header.stamp.nanosec * 1e-9
-        window = InputWindow(topic_map, engine.window, vessel.dt, 2.5, 5.0)
+        window = InputWindow.of_node(topic_map, engine.window, vessel.dt, parameters)
         # A forecast is stamped at its newest state's time minus the map's delay: the
         # samples it was made from reach that far beyond its stamp.
         newest = t_end + window.lag + 0.05
