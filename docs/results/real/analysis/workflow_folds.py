@@ -38,6 +38,13 @@ def at_horizon(pred: np.ndarray, windows, spec) -> float:
     return float(forecast_metrics(pred, windows.z_target, spec)['trajectory']['final_mean'])
 
 
+def open_study(study: Path) -> tuple[list[Fold], dict, object, list[str]]:
+    """Return a workflow study's folds, protocol, vessel and hybrid labels."""
+    folds, result = read_study(study)
+    hybrids = [row['label'] for row in result['rows'] if 'physics' in row]
+    return folds, result['protocol'], read_dataset(folds[0].path).vessel, hybrids
+
+
 def rudder_range(runs, spec) -> float:
     """Largest |rudder| (deg) of the vessel's rudders over ``runs``; NaN without one."""
     rudders = [spec.control_index(a.name) for a in spec.actuators if a.kind == 'rudder']
@@ -109,10 +116,7 @@ def main(argv: list[str]) -> int:
         print(__doc__, file=sys.stderr)
         return 2
     study, out = Path(argv[0]), Path(argv[1])
-    folds, result = read_study(study)
-    protocol = result['protocol']
-    spec = read_dataset(folds[0].path).vessel
-    hybrids = [row['label'] for row in result['rows'] if 'physics' in row]
+    folds, protocol, spec, hybrids = open_study(study)
     rows = []
     for fold in folds:
         rows += fold_rows(study, fold, hybrids, protocol, spec)

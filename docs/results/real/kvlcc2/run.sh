@@ -34,6 +34,18 @@ run python offline/crossval.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_h
 # 7. The five folds run by run: each held-out run's error per model, the seeds' ensemble.
 run python docs/results/real/analysis/workflow_folds.py "$WORK/kvlcc2_cv5" "$OUT/cv5" \
   > /dev/null
+# 8. Measured, not kept: the physics alone on unfamiliar input windows (post hoc), and
+#    smaller or weight-decayed corrections on folds 2 and 4 (the mild zig-zags), 3 seeds.
+run python docs/results/real/analysis/envelope_guard.py "$WORK/kvlcc2_cv5" "$OUT/cv5/guard" \
+  > /dev/null
+run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
+  "$WORK/kvlcc2_cv5_small" --folds 2 4 --set model.hidden=16 --set model.layers=1 > /dev/null
+run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
+  "$WORK/kvlcc2_cv5_wd" --folds 2 4 --set training.weight_decay=0.001 > /dev/null
+for variant in small wd; do
+  mkdir -p "$OUT/cv5/variant_$variant"
+  cp "$WORK/kvlcc2_cv5_$variant/variant.json" "$OUT/cv5/variant_$variant/"
+done
 for study in heldout cv5 hyd; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \

@@ -1,0 +1,118 @@
+"""
+Retrain a cross-validated workflow's hybrids with a changed config; compare on held-out runs.
+
+Usage:  tools/with_env.sh python docs/results/real/analysis/correction_variants.py
+            STUDY OUT --folds 2 4 --seeds 0 1 2 --set model.hidden=16 --set model.layers=1
+
+STUDY is the --out folder of ``offline/workflow.py --folds K``. For each given fold,
+seed and hybrid of the study (one per physics), the study's own training config of that
+run is trained again with the ``--set`` overrides (``offline/train.py``, two trainings
+at a time, one thread each; a finished training in OUT is kept). Then the study's
+models and the variants forecast the fold's held-out runs with the study's protocol,
+and the position error at the horizon's end is printed and written to OUT/variant.json:
+per run and pooled over the runs (weighted by their forecasts), mean ± sd over seeds.
+"""
+
+from __future__ import annotations
+
+import argparse
+from concurrent.futures import ThreadPoolExecutor
+import json
+from pathlib import Path
+import subprocess
+import sys
+
+import numpy as np
+from workflow_folds import at_horizon, open_study
+
+from hybrid_models.checkpoint import load_model
+from hybrid_models.data import forecast_windows, load_runs
+from hybrid_models.evaluation import PhysicsOnly
+from hybrid_models.models import predict
+from hybrid_models.studies.crossval import run_dir
+from hybrid_models.training.train import MODEL_FILE
+
+TRAIN = Path(__file__).resolve().parents[4] / 'offline' / 'train.py'
+
+
+def train(config: Path, out: Path, seed: int, overrides: list[str]) -> Path:
+    """Train ``config`` with ``overrides`` into ``out`` unless already done; return out."""
+    if (out / MODEL_FILE).is_file():
+        return out
+    out.mkdir(parents=True, exist_ok=True)
+    command = [sys.executable, str(TRAIN), str(config), '--out', str(out), '--quiet',
+               '--set', f'training.seed={seed}', '--set', 'training.threads=1']
+    for item in overrides:
+        command += ['--set', item]
+    with open(out / 'stderr.txt', 'w') as log:
+        subprocess.run(command, check=True, stdout=subprocess.DEVNULL, stderr=log)
+    print(f'trained {out}', file=sys.stderr, flush=True)
+    return out
+
+
+def pooled(rows: list[dict], key: str) -> tuple[float, float]:
+    """Mean and sd over seeds of the forecast-weighted mean over runs."""
+    weights = np.array([r['forecasts'] for r in rows], float)
+    per_seed = np.array([r[key] for r in rows])                   # runs x seeds
+    values = (per_seed * weights[:, None]).sum(0) / weights.sum()
+    return float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0
+
+
+def main(argv: list[str]) -> int:
+    """Train the variants, forecast the held-out runs, print and write the comparison."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('study', type=Path)
+    parser.add_argument('out', type=Path)
+    parser.add_argument('--folds', type=int, nargs='+', required=True)
+    parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
+    parser.add_argument('--set', dest='overrides', action='append', default=[],
+                        metavar='KEY=VALUE', help='config override, as for train.py')
+    args = parser.parse_args(argv)
+    if not args.overrides:
+        parser.error('give at least one --set: the variant to compare')
+    folds, protocol, spec, hybrids = open_study(args.study)
+    chosen = [f for f in folds if f.index in args.folds]
+    if len(chosen) != len(set(args.folds)):
+        parser.error(f'the study has folds {[f.index for f in folds]}')
+    tasks = [(run_dir(args.study, label, fold, 0) / 'config.yaml',
+              args.out / label.replace(' ', '_') / f'fold{fold.index}' / f'seed{seed}', seed)
+             for fold in chosen for label in hybrids for seed in args.seeds]
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        list(pool.map(lambda t: train(*t, args.overrides), tasks))
+    window, horizon, stride = (protocol[k] for k in ('window', 'horizon', 'stride'))
+    rows = []
+    for fold in chosen:
+        runs = [r for r in load_runs(fold.path, 'test', spec) if r.length >= window + horizon]
+        windows = forecast_windows(runs, window, horizon, stride, 'true')
+        fold_rows = [{'fold': fold.index, 'run': r.run_id,
+                      'forecasts': int((windows.run_index == k).sum())}
+                     for k, r in enumerate(runs)]
+        for label in hybrids:
+            study_models = [load_model(run_dir(args.study, label, fold, s) / MODEL_FILE)[0]
+                            for s in args.seeds]
+            variants = [load_model(args.out / label.replace(' ', '_') / f'fold{fold.index}'
+                                   / f'seed{s}' / MODEL_FILE)[0] for s in args.seeds]
+            alone = predict(PhysicsOnly(study_models[0].physical), windows)
+            preds = {'study': [predict(m, windows) for m in study_models],
+                     'variant': [predict(m, windows) for m in variants]}
+            for k, row in enumerate(fold_rows):
+                mine = windows.run_index == k
+                own = windows.subset(mine)
+                row[f'{label}: physics alone'] = [at_horizon(alone[mine], own, spec)]
+                for name, members in preds.items():
+                    row[f'{label}: {name}'] = [at_horizon(p[mine], own, spec)
+                                               for p in members]
+        rows += fold_rows
+    keys = [k for k in rows[0] if ':' in k]
+    for key in keys:
+        mean, sd = pooled(rows, key)
+        print(f'{key}: {mean:.2f} ± {sd:.2f} m at {horizon * spec.dt:.0f} s')
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / 'variant.json').write_text(json.dumps(
+        {'overrides': args.overrides, 'folds': args.folds, 'seeds': args.seeds,
+         'pooled': {k: pooled(rows, k) for k in keys}, 'runs': rows}, indent=1))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))
