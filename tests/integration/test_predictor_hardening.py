@@ -334,13 +334,6 @@ def test_silence_turns_diagnostics_error_within_two_forecast_periods(fed):
     count = len(graph.forecasts)
     assert wait_for(lambda: len(graph.forecasts) >= count + 2, 4 * SILENCE_PERIOD)
     assert graph.status().level == b'\x00', graph.status().message
-    # Stopped just after a forecast arrived, the node's last state comes after its last
-    # forecast, so the silence of forecasts is due no later than the input watchdog.
-    # Stopped at any moment, the last state could be the one forecast last: then the
-    # watchdog fires first whenever the forecast's publish lags its state past a status
-    # (1 in 12 runs under load), and the status names the inputs, not the forecasts.
-    count = len(graph.forecasts)
-    assert wait_for(lambda: len(graph.forecasts) > count, 2 * SILENCE_PERIOD)
     graph.feeder.running = False
     time.sleep(0.3)   # forecasts in flight arrive
     last = graph.forecasts[-1][0]
@@ -351,9 +344,18 @@ def test_silence_turns_diagnostics_error_within_two_forecast_periods(fed):
     assert wait_for(error, 4 * SILENCE_PERIOD)
     first_error = next(t for t, msg in graph.diagnostics if t >= last and
                        msg.status[0].level == b'\x02')
-    message = graph.status().message
-    assert first_error - last <= 2 * SILENCE_PERIOD, (first_error - last, message)
-    assert 'no forecast for' in message
+    assert first_error - last <= 2 * SILENCE_PERIOD, (first_error - last,
+                                                      graph.status().message)
+    # Two checks see this silence: the input watchdog (3 s of wall time after the last
+    # accepted state) and the forecast silence (1.5 periods, 3 s, after the last
+    # forecast's publish). When the last state is the one forecast last, its forecast is
+    # published up to a sync wait and a compute after it, so the watchdog may say ERROR
+    # one status earlier (3 of 21 runs under load named only the inputs at first): the
+    # order is a race, and each must speak within two periods.
+    assert wait_for(lambda: 'no forecast for' in graph.status().message, 2 * SILENCE_PERIOD)
+    said = [t for t, msg in graph.diagnostics
+            if t >= last and 'no forecast for' in msg.status[0].message]
+    assert said[0] - last <= 2 * SILENCE_PERIOD, (said[0] - last, graph.status().message)
     # Later the inputs are stale by the node's clock, and their age keeps growing.
     assert wait_for(lambda: 'inputs stale' in graph.status().message, 10)
     age = float(graph.values()['input_age_s'])
