@@ -116,8 +116,15 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     width = np.reshape(msg.band_upper, (2, 900, 5)) - np.reshape(msg.band_lower, (2, 900, 5))
     assert np.all(np.diff(radius, axis=1) >= 0) and np.all(np.diff(width, axis=1) >= -1e-12)
     assert np.all(radius[1] > radius[0]) and 50.0 < radius[1, 299] < 500.0   # m after 5 min
-    # States in the odometry's FLU: the first step's rates carry the odometry's signs.
-    twist = pose.twist.twist
+    # States in the odometry's FLU: the first step matches the odometry it forecasts, one
+    # step after the pose (against the pose itself, a second of manoeuvring moved v from
+    # 0.044 to 0.082 m/s: beyond any tolerance that would still catch a flipped sign).
+    def measured_after_first_step():
+        later = t_end + msg.step_period
+        return next((o for o in inputs.odom
+                     if abs(m.seconds_from_stamp(o.header.stamp) - later) < 1e-3), None)
+    assert spin_until(ros_node, measured_after_first_step, 10)
+    twist = measured_after_first_step().twist.twist
     assert msg.child_frame_id == 'base_link'
     np.testing.assert_allclose(hybrid[0, [0, 1, 3]], [twist.linear.x, twist.linear.y,
                                                       twist.angular.z], rtol=0.2, atol=0.02)
