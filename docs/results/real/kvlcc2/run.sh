@@ -42,7 +42,9 @@ run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" 
   "$WORK/kvlcc2_cv5_small" --folds 2 4 --set model.hidden=16 --set model.layers=1 > /dev/null
 run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
   "$WORK/kvlcc2_cv5_wd" --folds 2 4 --set training.weight_decay=0.001 > /dev/null
-for variant in small wd; do
+run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
+  "$WORK/kvlcc2_cv5_wd4" --folds 2 4 --set training.weight_decay=0.0001 > /dev/null
+for variant in small wd wd4; do
   mkdir -p "$OUT/cv5/variant_$variant"
   cp "$WORK/kvlcc2_cv5_$variant/variant.json" "$OUT/cv5/variant_$variant/"
 done
