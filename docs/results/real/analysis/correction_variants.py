@@ -22,8 +22,7 @@ from pathlib import Path
 import subprocess
 import sys
 
-import numpy as np
-from workflow_folds import at_horizon, open_study
+from workflow_folds import at_horizon, open_study, pooled_over_runs
 
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import forecast_windows, load_runs
@@ -51,11 +50,13 @@ def train(config: Path, out: Path, seed: int, overrides: list[str]) -> Path:
 
 
 def pooled(rows: list[dict], key: str) -> tuple[float, float]:
-    """Mean and sd over seeds of the forecast-weighted mean over runs."""
-    weights = np.array([r['forecasts'] for r in rows], float)
-    per_seed = np.array([r[key] for r in rows])                   # runs x seeds
-    values = (per_seed * weights[:, None]).sum(0) / weights.sum()
-    return float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0
+    """Mean and sd over seeds of ``key`` pooled over the runs of ``rows``."""
+    return pooled_over_runs([r[key] for r in rows], [r['forecasts'] for r in rows])
+
+
+def variant_dir(out: Path, label: str, fold, seed: int) -> Path:
+    """Return where the variant of ``label``'s model of ``fold`` and ``seed`` is trained."""
+    return out / label.replace(' ', '_') / f'fold{fold.index}' / f'seed{seed}'
 
 
 def main(argv: list[str]) -> int:
@@ -75,7 +76,7 @@ def main(argv: list[str]) -> int:
     if len(chosen) != len(set(args.folds)):
         parser.error(f'the study has folds {[f.index for f in folds]}')
     tasks = [(run_dir(args.study, label, fold, 0) / 'config.yaml',
-              args.out / label.replace(' ', '_') / f'fold{fold.index}' / f'seed{seed}', seed)
+              variant_dir(args.out, label, fold, seed), seed)
              for fold in chosen for label in hybrids for seed in args.seeds]
     with ThreadPoolExecutor(max_workers=2) as pool:
         list(pool.map(lambda t: train(*t, args.overrides), tasks))
@@ -90,8 +91,8 @@ def main(argv: list[str]) -> int:
         for label in hybrids:
             study_models = [load_model(run_dir(args.study, label, fold, s) / MODEL_FILE)[0]
                             for s in args.seeds]
-            variants = [load_model(args.out / label.replace(' ', '_') / f'fold{fold.index}'
-                                   / f'seed{s}' / MODEL_FILE)[0] for s in args.seeds]
+            variants = [load_model(variant_dir(args.out, label, fold, s) / MODEL_FILE)[0]
+                        for s in args.seeds]
             alone = predict(PhysicsOnly(study_models[0].physical), windows)
             preds = {'study': [predict(m, windows) for m in study_models],
                      'variant': [predict(m, windows) for m in variants]}

@@ -23,7 +23,7 @@ from pathlib import Path
 import sys
 
 import numpy as np
-from workflow_folds import at_horizon, open_study
+from workflow_folds import at_horizon, open_study, pooled_over_runs
 
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import forecast_windows, load_runs
@@ -66,8 +66,7 @@ def main(argv: list[str]) -> int:
     parser.add_argument('study', type=Path, help='the --out folder of workflow.py --folds K')
     parser.add_argument('out', type=Path, help='receives guard.json')
     args = parser.parse_args(argv)
-    study, out = args.study, args.out
-    folds, protocol, spec, hybrids = open_study(study)
+    folds, protocol, spec, hybrids = open_study(args.study)
     window, horizon, stride = (protocol[k] for k in ('window', 'horizon', 'stride'))
     rows = []
     for fold in folds:
@@ -77,19 +76,19 @@ def main(argv: list[str]) -> int:
         windows = forecast_windows(runs, window, horizon, stride, 'true')
         distance, thresholds = novelty(trained, windows)
         for label in hybrids:
-            members = [load_model(run_dir(study, label, fold, s) / MODEL_FILE)[0]
+            members = [load_model(run_dir(args.study, label, fold, s) / MODEL_FILE)[0]
                        for s in protocol['seeds']]
             preds = [predict(m, windows) for m in members]
             alone = predict(PhysicsOnly(members[0].physical), windows)
             for k, run in enumerate(runs):
                 mine = windows.run_index == k
                 own = windows.subset(mine)
+                novel = {n: distance[mine] > t for n, t in thresholds.items()}
                 row = {'fold': fold.index, 'run': run.run_id, 'hybrid': label,
                        'forecasts': int(mine.sum()),
-                       'novel': {n: float((distance[mine] > t).mean())
-                                 for n, t in thresholds.items()}}
-                for name, t in thresholds.items():
-                    guarded = (distance[mine] > t)[:, None, None]
+                       'novel': {n: float(flags.mean()) for n, flags in novel.items()}}
+                for name, flags in novel.items():
+                    guarded = flags[:, None, None]
                     row[name] = [at_horizon(np.where(guarded, alone[mine], p[mine]), own, spec)
                                  for p in preds]
                 rows.append(row)
@@ -97,18 +96,16 @@ def main(argv: list[str]) -> int:
     summary = {}
     for label in hybrids:
         mine = [r for r in rows if r['hybrid'] == label]
-        weights = np.array([r['forecasts'] for r in mine], float)
+        weights = [r['forecasts'] for r in mine]
         for name in LEVELS:
-            per_seed = np.array([r[name] for r in mine])
-            pooled = (per_seed * weights[:, None]).sum(0) / weights.sum()
-            novel = np.average([r['novel'][name] for r in mine], weights=weights)
-            summary[f'{label}, guard {name}'] = (float(pooled.mean()), float(pooled.std(ddof=1)),
-                                                 float(novel))
-            print(f'{label}, guard {name}: {pooled.mean():.2f} ± {pooled.std(ddof=1):.2f} m '
-                  f'at {horizon * spec.dt:.0f} s; physics alone on {100 * novel:.0f} % of '
+            mean, sd = pooled_over_runs([r[name] for r in mine], weights)
+            novel = float(np.average([r['novel'][name] for r in mine], weights=weights))
+            summary[f'{label}, guard {name}'] = (mean, sd, novel)
+            print(f'{label}, guard {name}: {mean:.2f} ± {sd:.2f} m at '
+                  f'{horizon * spec.dt:.0f} s; physics alone on {100 * novel:.0f} % of '
                   f'the forecasts')
-    out.mkdir(parents=True, exist_ok=True)
-    (out / 'guard.json').write_text(json.dumps({'summary': summary, 'runs': rows}, indent=1))
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / 'guard.json').write_text(json.dumps({'summary': summary, 'runs': rows}, indent=1))
     return 0
 
 

@@ -45,6 +45,19 @@ def open_study(study: Path) -> tuple[list[Fold], dict, object, list[str]]:
     return folds, result['protocol'], read_dataset(folds[0].path).vessel, hybrids
 
 
+def pooled_over_runs(per_run_seed, forecasts) -> tuple[float, float]:
+    """
+    Return the mean and sd over seeds of an error pooled over runs.
+
+    ``per_run_seed`` (runs, seeds): each run's error per seed; pooled over the runs it is
+    their mean weighted by ``forecasts`` (runs,), the pooled figure of a study's table.
+    """
+    per_run_seed = np.asarray(per_run_seed, np.float64)
+    weights = np.asarray(forecasts, np.float64)
+    values = (per_run_seed * weights[:, None]).sum(axis=0) / weights.sum()
+    return float(values.mean()), float(values.std(ddof=1)) if len(values) > 1 else 0.0
+
+
 def rudder_range(runs, spec) -> float:
     """Largest |rudder| (deg) of the vessel's rudders over ``runs``; NaN without one."""
     rudders = [spec.control_index(a.name) for a in spec.actuators if a.kind == 'rudder']
