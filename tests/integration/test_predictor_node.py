@@ -49,9 +49,12 @@ class Inputs:
         return w.assemble(now=t_end)
 
 
-def start_pair(launcher, *predictor_params):
-    launcher.start_node('ship_sim_node', 'simulator', '--ros-args', '-p', 'seed:=3',
-                        '-p', f'start_time:={START}', '-p', 'real_time_factor:=20.0')
+def start_pair(launcher, *predictor_params, scenario=None):
+    simulator = ['--ros-args', '-p', 'seed:=3', '-p', f'start_time:={START}',
+                 '-p', 'real_time_factor:=20.0']
+    if scenario is not None:
+        simulator += ['-p', f'scenario:={scenario}']
+    launcher.start_node('ship_sim_node', 'simulator', *simulator)
     args = ['--ros-args', '-p', 'use_sim_time:=true']
     for p in predictor_params:
         args += ['-p', p]
@@ -69,7 +72,7 @@ def default_model():
 
 
 def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_model(
-        launcher, ros_node):
+        launcher, ros_node, tmp_path):
     import torch
 
     from hybrid_models.metrics import dead_reckoning
@@ -81,7 +84,12 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     inputs = Inputs(ros_node)
     forecasts = []
     ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 10)
-    start_pair(launcher)
+    # Without sensor noise, so that the sign check below compares conventions, not noise:
+    # with it (v: 0.02 m/s in the forecast's input and again in the odometry it is compared
+    # with) a right forecast missed the odometry by 0.05 m/s in a CI run.
+    noiseless = tmp_path / 'noiseless.yaml'
+    noiseless.write_text('vessel: patrol_boat\nnoise: {enabled: false}\n')
+    start_pair(launcher, scenario=noiseless)
 
     def covered() -> list:
         # Forecasts whose whole window this test heard: its subscriptions may match the
@@ -119,6 +127,7 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     # States in the odometry's FLU: the first step matches the odometry it forecasts, one
     # step after the pose (against the pose itself, a second of manoeuvring moved v from
     # 0.044 to 0.082 m/s: beyond any tolerance that would still catch a flipped sign).
+    # The tolerance is the model's one-step error; a flipped v or r sign exceeds it.
     def measured_after_first_step():
         later = t_end + msg.step_period
         return next((o for o in inputs.odom
@@ -126,8 +135,11 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     assert spin_until(ros_node, measured_after_first_step, 10)
     twist = measured_after_first_step().twist.twist
     assert msg.child_frame_id == 'base_link'
-    np.testing.assert_allclose(hybrid[0, [0, 1, 3]], [twist.linear.x, twist.linear.y,
-                                                      twist.angular.z], rtol=0.2, atol=0.02)
+    np.testing.assert_allclose(hybrid[0, [0, 1]], [twist.linear.x, twist.linear.y],
+                               rtol=0.2, atol=0.02)
+    # r of 0.007-0.011 rad/s, one-step errors up to 0.0024 measured: atol 0.02 would pass a
+    # flipped r too.
+    np.testing.assert_allclose(hybrid[0, 3], twist.angular.z, rtol=0.2, atol=0.004)
 
     model, _ = default_model()
     window = inputs.window_until(t_end, 60)
