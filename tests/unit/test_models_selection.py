@@ -196,3 +196,24 @@ def test_one_run_against_the_others_is_judged_by_runs_not_by_forecasts():
     assert harms(worse, base, None, pairs, 0.95) == []
     assert harms(worse, base, None, pairs, None) == ['position at step 1',
                                                     'state error at step 1']
+
+
+def test_the_correction_scale_comes_from_the_data_when_asked_not_from_the_physics(
+        linear, tmp_path):
+    from hybrid_models.training.config import ConfigError
+
+    base = [f'dataset={linear}', 'training.progress=false', 'training.selection.do_no_harm=false',
+            'training.phases=[{kind: teacher, max_epochs: 1, patience: 1, lr: 0.001}]']
+    train_runs = load_runs(linear, 'train', TOY_VESSEL)
+    change = np.concatenate([np.diff(r.z, axis=0) for r in train_runs]).std(axis=0)
+    scales = {}
+    for scale in ('physics_residual', 'state_change'):
+        cfg = load_config(SMOKE, base + [f'model.residual_scale={scale}'])
+        out = tmp_path / scale
+        train(cfg, out)
+        scales[scale] = load_model(out / 'model.safetensors')[0].residual_std.numpy()
+    np.testing.assert_allclose(scales['state_change'], change, rtol=1e-5)
+    # The toy's physics explains its data exactly: its one-step residual is far smaller.
+    assert np.all(scales['physics_residual'] < 0.1 * change)
+    with pytest.raises(ConfigError, match='residual_scale'):
+        load_config(SMOKE, base + ['model.residual_scale=bigger'])

@@ -34,6 +34,12 @@ DEFAULTS: dict = {
         'bound_in_training': False,
         'correction_init': 'zero',   # zero: training starts from the physics' forecast;
                                      # random: torch's default initialization of the head
+        # What scales the correction's output (hybrid_step: residual_std): the spread of
+        # the physics' one-step residual on the training runs (physics_residual, the
+        # paper's normalisation), or that of the measured states' one-step change
+        # (state_change: a property of the data alone, so a better physics does not
+        # shrink the correction's steps and slow its learning).
+        'residual_scale': 'physics_residual',
         'relative_threshold': None,   # the largest threshold served, e.g. 0.15 (None: no
                                       # cap); the served one is chosen on validation
                                       # (training.selection)
@@ -102,6 +108,7 @@ DEFAULTS: dict = {
 
 PHASE_KEYS = {'kind', 'max_epochs', 'patience', 'lr', 'stop_loss', 'sequence_length'}
 PHASE_KINDS = ('teacher', 'multistep')
+RESIDUAL_SCALES = ('physics_residual', 'state_change')
 
 
 class ConfigError(ValueError):
@@ -130,6 +137,9 @@ def resolve(cfg: dict) -> dict:
         if extra or phase.get('kind') not in PHASE_KINDS:
             raise ConfigError(f'training.phases[{i}]: kind must be one of {PHASE_KINDS} '
                               f'and keys among {sorted(PHASE_KEYS)} (got {phase})')
+    if out['model']['residual_scale'] not in RESIDUAL_SCALES:
+        raise ConfigError(f"model.residual_scale must be one of {RESIDUAL_SCALES}, got "
+                          f"{out['model']['residual_scale']!r}")
     kind = out['model']['kind']
     if kind == 'lstm' and any(p['kind'] == 'teacher' for p in out['training']['phases']):
         raise ConfigError('the LSTM baseline has no physical model to teacher-force; '

@@ -307,7 +307,7 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
     physical.fit(pairs[:, :ns], pairs[:, ns:ns + nc], pairs[:, ns + nc:])
     # The fitted values as the hybrid holds them (its buffers), taken once for every run.
     fitted = physical.numpy_model()
-    residual = Moments(ns)
+    residual, change = Moments(ns), Moments(ns)
     squares = np.zeros(ns)
     outputs = RowSample(cfg['training']['statistics_rows'], cfg['training']['seed'])
     z_phy = {}
@@ -326,11 +326,13 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
                 if split == 'train':
                     error = rows[1:, :ns] - one_step
                     residual.add(error)
+                    change.add(rows[1:, :ns] - rows[:-1, :ns])
                     squares += (np.asarray(error, np.float64) ** 2).sum(axis=0)
                 prev = rows[-1:]
             writer.close()
             z_phy[split].append(RowFile(path, ns, run.length - 1))
-    model.residual_std.copy_(torch.as_tensor(residual.normalizer().std))
+    scale = residual if cfg['model']['residual_scale'] == 'physics_residual' else change
+    model.residual_std.copy_(torch.as_tensor(scale.normalizer().std))
     r95 = output_range(outputs.rows())
     model.output_range.copy_(torch.as_tensor(r95))
     model.set_threshold(cfg['model']['relative_threshold'])
@@ -342,7 +344,9 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
                       'relative_threshold': cfg['model']['relative_threshold'],
                       'half_width': model.bound.tolist()},
             'physics_one_step_rmse': dict(zip(model.spec.state_names,
-                                              one_step_rmse.tolist(), strict=True))}
+                                              one_step_rmse.tolist(), strict=True)),
+            'residual_scale': {'from': cfg['model']['residual_scale'],
+                               'std': model.residual_std.tolist()}}
     info['bound']['range_from'] = ('all one-step outputs' if outputs.complete else
                                    f'a uniform sample of {outputs.capacity} of '
                                    f'{outputs.seen} one-step outputs')
