@@ -21,11 +21,11 @@ HORIZON = ['--horizon', '100']
 
 @pytest.fixture(scope='module')
 def study(tmp_path_factory):
-    """Return a finished two-fold, two-seed study of tiny hybrids on six toy runs."""
+    """Return a finished three-fold, two-seed study of tiny hybrids on six toy runs."""
     root = tmp_path_factory.mktemp('study')
     toy = write_toy_dataset(root / 'toy', n_runs=6, n_samples=260)
     out = root / 'cv'
-    args = ['--dataset', str(toy), '--out', str(out), '--seeds', '2', '--folds', '2',
+    args = ['--dataset', str(toy), '--out', str(out), '--seeds', '2', '--folds', '3',
             '--model', f'{LABEL}={SMOKE}', '--horizon', '100', '--window', '20',
             '--threads', '1', '--jobs', '1']
     assert crossval.main(args + sum((['--set', s] for s in SHORT), [])) == 0
@@ -53,14 +53,16 @@ def test_study_bands_are_written_at_the_checkpoints_threshold_and_their_coverage
     bands = engine.bands
     assert bands is not None, engine.bands_note
     assert bands.relative_threshold == engine.relative_threshold
-    assert bands.source['folds'] == 2 and bands.source['runs'] == 6
+    assert bands.source['folds'] == 3 and bands.source['runs'] == 6
+    assert bands.source['calibration'] == 'fold-robust'
     assert bands.source['seeds'] == 'all' and bands.source['model'] == LABEL
-    assert bands.origin.startswith('cross-validated over 2 folds, ')
+    assert bands.origin.startswith('cross-validated over 3 folds, ')
+    assert bands.origin.endswith('quantile levels chosen leave-one-fold-out')
     assert f"{bands.source['forecasts']} forecasts of 6 runs" in bands.origin
     assert 'leave-one-fold-out' in printed and bands.origin in printed
     rows = [line for line in printed.splitlines() if line.startswith('| 0.')]
     assert len(rows) == 2 * 4          # two levels, four reported steps
-    assert printed.count('held out (') == 2 and '0.9 band ' in printed
+    assert printed.count('held out (') == 3 and '0.9 band ' in printed
     before, after = load_file(str(model_of(out))), load_file(str(path))
     assert all(np.array_equal(before[k], after[k]) for k in before)
     # One seed's models: half the forecasts.
@@ -72,7 +74,7 @@ def test_study_bands_are_written_at_the_checkpoints_threshold_and_their_coverage
     # The model card says where its bands came from.
     assert model_card([str(path), '--dataset', str(toy), '--horizon', '100',
                        '--out', str(tmp_path / 'card')]) == 0
-    assert 'From cross-validated over 2 folds' in (tmp_path / 'card' / 'MODEL_CARD.md').read_text()
+    assert 'From cross-validated over 3 folds' in (tmp_path / 'card' / 'MODEL_CARD.md').read_text()
 
 
 def test_out_of_fold_forecasts_are_served_at_the_given_threshold(study):
@@ -86,7 +88,7 @@ def test_out_of_fold_forecasts_are_served_at_the_given_threshold(study):
     folds, _ = read_study(out)
     model, _ = load_model(model_of(out))
     held = out_of_fold_forecasts(out, LABEL, model.spec, 0.0, 20, 100, 10, [0])
-    assert [h.fold for h in held] == [0, 1]
+    assert [h.fold for h in held] == [0, 1, 2]
     assert sorted(r for h in held for r in h.runs) == sorted(
         r for f in folds for r in f.test)
     windows = forecast_windows(load_runs(folds[0].path, 'test', model.spec), 20, 100, 10)

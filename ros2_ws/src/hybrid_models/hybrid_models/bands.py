@@ -177,13 +177,17 @@ def _same_threshold(a, b) -> bool:
 
 
 def calibrate(pred: np.ndarray, true: np.ndarray, spec, relative_threshold,
-              levels=LEVELS, source: dict | None = None) -> Bands:
+              levels=LEVELS, source: dict | None = None,
+              taken_at: np.ndarray | None = None) -> Bands:
     """
     Return the bands of forecasts ``pred`` against ``true`` (B, H, n_state), see module doc.
 
-    ``relative_threshold`` is the threshold the forecasts were served at. Refuse fewer
-    forecasts than a level needs to have an error outside its band at both ends
-    (2 / (1 - L)), and non-finite forecasts.
+    ``relative_threshold`` is the threshold the forecasts were served at. ``taken_at``
+    (levels, knots, n_state + 1; last column the position): the quantile level each
+    band's edges are taken at, per knot and state, where it differs from the band's
+    nominal level (``cross_bands.fold_robust_levels``); default the nominal level.
+    Refuse fewer forecasts than a level needs to have an error outside its band at both
+    ends (2 / (1 - L)), and non-finite forecasts.
     """
     pred = np.asarray(pred, np.float64)
     true = np.asarray(true, np.float64)
@@ -201,15 +205,37 @@ def calibrate(pred: np.ndarray, true: np.ndarray, spec, relative_threshold,
     at = steps - 1
     error = (true - pred)[:, at]                                   # (B, K, n)
     distance = trajectory_errors(pred, true, spec)[:, at]          # (B, K)
+    if taken_at is None:
+        taken_at = np.broadcast_to(np.asarray(levels)[:, None, None],
+                                   (len(levels), len(steps), error.shape[-1] + 1))
+    elif np.shape(taken_at) != (len(levels), len(steps), error.shape[-1] + 1):
+        raise BandsError(f'quantile levels of shape {np.shape(taken_at)} do not fit '
+                         f'{len(levels)} levels, {len(steps)} knots and '
+                         f'{error.shape[-1]} states plus the position')
+    ordered, ordered_distance = np.sort(error, axis=0), np.sort(distance, axis=0)
     lower, upper, position = [], [], []
-    for level in levels:
-        lo, hi = np.quantile(error, [(1 - level) / 2, (1 + level) / 2], axis=0)
-        lower.append(-widening(-lo))
-        upper.append(widening(hi))
-        position.append(widening(np.quantile(distance, level, axis=0)))
+    for at_level in np.asarray(taken_at, np.float64):
+        states, radius = at_level[:, :-1], at_level[:, -1]
+        lower.append(-widening(-quantile_each(ordered, (1 - states) / 2)))
+        upper.append(widening(quantile_each(ordered, (1 + states) / 2)))
+        position.append(widening(quantile_each(ordered_distance, radius)))
     return Bands(levels, steps, np.stack(lower), np.stack(upper), np.stack(position),
                  tuple(spec.state_names), relative_threshold,
                  {'forecasts': int(len(pred)), **(source or {})})
+
+
+def quantile_each(ordered: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """
+    Return the quantile of each column of ``ordered`` (B, ...) at its own level ``q`` (...).
+
+    ``ordered`` is sorted along axis 0; numpy's default (linear) quantile, column by column.
+    """
+    place = np.asarray(q, np.float64) * (len(ordered) - 1)
+    below = np.floor(place).astype(np.int64)
+    above = np.minimum(below + 1, len(ordered) - 1)
+    low = np.take_along_axis(ordered, below[None], axis=0)[0]
+    high = np.take_along_axis(ordered, above[None], axis=0)[0]
+    return low + (place - below) * (high - low)
 
 
 def widening(values: np.ndarray) -> np.ndarray:

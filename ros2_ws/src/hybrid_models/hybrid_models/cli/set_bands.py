@@ -23,9 +23,13 @@ with a hybrid LABEL trained on every fold; each fold's LABEL models (every seed,
 --seed) forecast that fold's held-out runs, all served at the checkpoint's threshold,
 and these out-of-fold forecasts of every recording, pooled, calibrate the bands. They
 hold for a model of LABEL's recipe, e.g. MODEL trained on all runs, served at that
-threshold. Also prints their honest coverage: calibrated leave-one-fold-out (on the
-other folds' forecasts, measured on this fold's, pooled), per level, state and reported
-step. What it promises is that coverage, not the nominal level.
+threshold. By default each band edge is taken at the quantile level whose
+leave-one-fold-out coverage reaches the nominal level (--calibration fold-robust, see
+hybrid_models.cross_bands: recordings are not alike, and pooled quantiles fall short on
+the folds a model mispredicts). Also prints their honest coverage: calibrated
+leave-one-fold-out (on the other folds' forecasts, level choice included, measured on
+this fold's, pooled), per level, state and reported step. What it promises is that
+coverage, not the nominal level.
 """
 
 import argparse
@@ -40,7 +44,12 @@ from hybrid_models.checkpoint_format import (
     vessel_of,
 )
 from hybrid_models.cli.arguments import progress
-from hybrid_models.cross_bands import cross_calibrate, held_out_coverage, least_covered
+from hybrid_models.cross_bands import (
+    CALIBRATIONS,
+    cross_calibrate,
+    held_out_coverage,
+    least_covered,
+)
 from hybrid_models.data import dataset_hash, evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
 from hybrid_models.studies.crossval import out_of_fold_forecasts
@@ -70,6 +79,10 @@ def parse_args(argv=None):
                         help='samples between forecasts in a run (default: horizon / 30)')
     parser.add_argument('--levels', type=float, nargs='+', default=list(LEVELS),
                         help='band levels in (0, 1) (default 0.5 0.9)')
+    parser.add_argument('--calibration', choices=CALIBRATIONS, default='fold-robust',
+                        help='--study: quantile levels chosen leave-one-fold-out '
+                             '(fold-robust, default) or the nominal levels on the pooled '
+                             'forecasts (pooled)')
     parser.add_argument('--out', type=Path, help='write here instead of in place')
     args = parser.parse_args(argv)
     if args.study is not None and args.model is None:
@@ -119,7 +132,8 @@ def set_bands(checkpoint: Path, dataset_dir: Path, horizon: int | None, stride: 
 
 def set_study_bands(checkpoint: Path, study: Path, label: str, seed: int | None,
                     horizon: int | None, stride: int | None, levels,
-                    out: Path | None) -> tuple[Bands, list[str]]:
+                    out: Path | None, calibration: str = 'fold-robust'
+                    ) -> tuple[Bands, list[str]]:
     """Compute and write cross-validated bands; return them and their coverage table."""
     config = read_header(checkpoint)
     engine = Forecaster.from_checkpoint(checkpoint)
@@ -130,8 +144,8 @@ def set_study_bands(checkpoint: Path, study: Path, label: str, seed: int | None,
                                      lambda m: print(f'set_bands: {m}', file=sys.stderr))
     bands = cross_calibrate(held_out, engine.spec, threshold, levels, source={
         'stride': stride, 'target': 'measured', 'study': str(study), 'model': label,
-        'seeds': 'all' if seed is None else [seed]})
-    cover = held_out_coverage(held_out, engine.spec, threshold, levels)
+        'seeds': 'all' if seed is None else [seed]}, calibration=calibration)
+    cover = held_out_coverage(held_out, engine.spec, threshold, levels, calibration)
     rewrite_config(checkpoint, {**config, 'bands': bands.to_dict()}, out)
     table = [f'Bands {bands.origin}: width (upper - lower; position: radius) and, in '
              f'brackets, the fraction of forecasts they held leave-one-fold-out '
@@ -155,7 +169,8 @@ def main(argv=None) -> int:
                               args.levels, args.out)
         else:
             bands, table = set_study_bands(args.checkpoint, args.study, args.model, args.seed,
-                                           args.horizon, args.stride, args.levels, args.out)
+                                           args.horizon, args.stride, args.levels, args.out,
+                                           args.calibration)
             print('\n'.join(table))
     except (BandsError, CheckpointError, DatasetError, FileNotFoundError, ValueError) as exc:
         print(f'set_bands: error: {exc}', file=sys.stderr)
