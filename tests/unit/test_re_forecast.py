@@ -124,3 +124,57 @@ def test_a_forecast_equal_to_its_re_forecast_and_one_that_is_not(run):
 def test_a_forecast_that_cannot_be_recomputed_says_why(run, fields, skip, why):
     with pytest.raises(ReForecastError, match=why):
         kept(run, skip).offline(forecast_message(run, 0, 0, 0, **fields))
+
+
+def delayed(topic_map, seconds):
+    """Return the topic map with surge, sway and position measured ``seconds`` late."""
+    from dataclasses import replace
+
+    late = ('surge', 'sway', 'point')
+    return replace(topic_map, entries=tuple(
+        replace(e, delay_s=seconds) if e.name in late else e for e in topic_map.entries))
+
+
+def test_a_delayed_map_is_re_forecast_from_the_samples_up_to_its_newest_state(run):
+    from hybrid_predictor.input_window import InputWindow
+    from vessel_datasets.topic_messages import channel_reader
+
+    topic_map = delayed(run.topic_map, 2.0)
+    # The node: every sample up to the newest state, assembled there; the window (and
+    # the forecast's stamp) ends the map's delay earlier.
+    node = InputWindow.of_node(topic_map, run.engine.window, 1.0, predictor_defaults())
+    newest = START + T_END + 2.0
+    for topic, msg in run.msgs:
+        t = m.seconds_from_stamp(msg.header.stamp)
+        if t <= newest:
+            node.push(topic, t, channel_reader(topic_map, topic)(msg))
+    expected = node.assemble(now=newest, until=newest)
+    assert expected.ready and expected.t_end == START + T_END
+
+    re_forecast = ReForecast(run.engine, topic_map, predictor_defaults())
+    for topic, msg in run.msgs:
+        re_forecast.add_input(topic, msg)
+    re_forecast.add_plan(control_plan(run.vessel, run.plan, plan_id='p1',
+                                      stamp=m.stamp_from_seconds(START)))
+    got = re_forecast.window_at(START + T_END)
+    assert got.ready and got.t_end == expected.t_end
+    np.testing.assert_array_equal(got.states, expected.states)
+    np.testing.assert_array_equal(got.controls, expected.controls)
+    assert re_forecast.offline(forecast_message(run, 0, 0, 0))[0].shape == (HORIZON, 5)
+
+
+def test_samples_timed_when_sent_are_re_forecast_within_their_arrival_slack(run):
+    from vessel_datasets.topic_messages import channel_reader
+
+    exact = kept(run).offline(forecast_message(run, 0, 0, 0))[0]
+    # Timed by a sender 10 ms before the node stamped them on arrival.
+    sent = ReForecast(run.engine, run.topic_map, predictor_defaults())
+    for topic, msg in run.msgs:
+        values = channel_reader(run.topic_map, topic)(msg)
+        sent.add_sample(topic, m.seconds_from_stamp(msg.header.stamp) - 0.01, values)
+    sent.add_plan(control_plan(run.vessel, run.plan, plan_id='p1',
+                               stamp=m.stamp_from_seconds(START)))
+    np.testing.assert_allclose(sent.offline(forecast_message(run, 0, 0, 0), 0.05)[0], exact,
+                               rtol=1e-6, atol=1e-9)
+    with pytest.raises(ReForecastError, match='the kept states end at'):
+        sent.offline(forecast_message(run, 0, 0, 0))

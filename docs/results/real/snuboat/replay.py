@@ -58,6 +58,8 @@ ament_package()
 """
 TOPICS = ('/sensor', '/ctrl_fb_boat')
 THRESHOLD = 0.15   # the relative threshold the replayed predictor serves (-p below)
+# How much later (s) than this script's send time the node may stamp a sample on arrival.
+ARRIVAL_SLACK = 0.05
 
 
 def build_messages(msg_dir: Path, workspace: Path) -> Path:
@@ -150,15 +152,14 @@ def main() -> int:
     from vessel_bringup.processes import Children, rclpy_options
 
     from hybrid_models.engine import Forecaster
-    from hybrid_predictor.input_window import InputWindow
     from hybrid_predictor.plan_message import control_plan
-    from hybrid_predictor.re_forecast import predictor_defaults
+    from hybrid_predictor.re_forecast import ReForecast, ReForecastError, predictor_defaults
     from hybrid_predictor_interfaces.msg import Forecast
     from hybrid_predictor_interfaces.srv import Predict
     from vessel_datasets.topic_map import ACTUATOR_PREFIX, topic_map_for
     from vessel_datasets.topic_messages import channel_reader
     from vessel_description import load_vessel
-    from vessel_physics.frames import states_flu_to_frd
+    from vessel_ros_bridge.messages import seconds_from_stamp
 
     messages = bag_messages(args.bag, args.msg_dir)
     # The predictor is stopped however this block ends (an error, Ctrl-C, SIGTERM).
@@ -234,32 +235,25 @@ def main() -> int:
                       'finite': bool(all(np.isfinite(f.hybrid).all() for f in a.forecasts))}
                for name, a in answers.items()}
 
-    engine = Forecaster.from_checkpoint(args.model, THRESHOLD)
-    parameters = predictor_defaults()   # the window the node assembles, with its defaults
-    diffs, scale = [], None
+    # Recomputed by the predictor's own re-forecast (hybrid_predictor.re_forecast) from the
+    # samples as they were sent: these types carry no header, so the node stamped each on
+    # arrival, a few milliseconds after the time kept here (ARRIVAL_SLACK).
+    kept = ReForecast(Forecaster.from_checkpoint(args.model, THRESHOLD), topic_map,
+                      predictor_defaults())
+    for t, topic, values in sent:
+        kept.add_sample(topic, t, values)
+    compared, not_compared = [], {}
     for fc in forecasts:
-        t_end = fc.header.stamp.sec + fc.header.stamp.nanosec * 1e-9
-        window = InputWindow.of_node(topic_map, engine.window, vessel.dt, parameters)
-        # A forecast is stamped at its newest state's time minus the map's delay: the
-        # samples it was made from reach that far beyond its stamp.
-        newest = t_end + window.lag + 0.05
-        for t, topic, values in sent:
-            if t <= newest:
-                window.push(topic, t, values)
-        result = window.assemble(now=newest)
-        if not result.ready:
-            continue
-        future = np.broadcast_to(result.controls[-1], (1, fc.horizon, vessel.n_control))
-        offline = engine.forecast(result.states, result.controls, future).hybrid[0]
-        online = states_flu_to_frd(np.reshape(fc.hybrid, (fc.horizon, vessel.n_state)),
-                                   vessel.state_names)   # the message is FLU (REP-103)
-        scale = np.maximum(np.abs(offline).max(axis=0), 1e-3)
-        diffs.append(np.abs(online - offline).max(axis=0) / scale)
-    diffs = np.asarray(diffs)
+        try:
+            compared.append(kept.difference(fc, ARRIVAL_SLACK))
+        except ReForecastError as exc:
+            not_compared[f'{seconds_from_stamp(fc.header.stamp):.3f}'] = str(exc)
+    diffs = np.array([[d.relative[n] for n in vessel.state_names] for d in compared])
     print(json.dumps({
         'bag': args.bag.name, 'replayed_s': args.seconds,
         'messages_published': len([s for s in sent]), 'forecasts_published': len(forecasts),
         'forecasts_compared': int(len(diffs)),
+        'why_not_compared': dict(list(not_compared.items())[:5]),
         'forecasts_within_1e-3': None if not len(diffs) else
         int((diffs.max(axis=1) < 1e-3).sum()),
         'state_names': list(forecasts[0].state_names) if forecasts else None,

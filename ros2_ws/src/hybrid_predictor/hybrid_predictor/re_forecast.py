@@ -99,8 +99,16 @@ class ReForecast:
             values = self.readers[topic](msg)
         except (AttributeError, IndexError, TypeError, ValueError):
             return   # the node rejects it as malformed too
+        self.add_sample(topic, seconds_from_stamp(msg.header.stamp), values)
+
+    def add_sample(self, topic: str, t: float, values: dict) -> None:
+        """
+        Keep one sample of ``topic`` read already (its channel values) at time ``t`` (s).
+
+        For messages without a header, which the node stamps on arrival: ``t`` is when
+        they were sent (see ``offline``'s ``arrival_slack``).
+        """
         times, rows = self.samples[topic]
-        t = seconds_from_stamp(msg.header.stamp)
         at = bisect_right(times, t)
         times.insert(at, t)
         rows.insert(at, values)
@@ -109,25 +117,29 @@ class ReForecast:
         """Keep a ControlPlan message (the latest one of each stamp and plan id)."""
         self.plans[(seconds_from_stamp(msg.header.stamp), str(msg.plan_id))] = msg
 
-    def window_at(self, t_end: float):
+    def window_at(self, t_end: float, arrival_slack: float = 0.0):
         """
         Return the assembled window (``InputWindow.assemble``) the node had at ``t_end``.
 
+        ``t_end`` is a forecast's stamp: its newest state sample's time minus the topic
+        map's delay (``InputWindow.lag``), so samples up to that newest one are taken, and
+        ``arrival_slack`` (s) later for samples timed when sent rather than stamped.
         Raise ReForecastError when a stream's kept samples have a gap there longer than
         MISSED_SPACINGS of its usual spacing: a message was missed here, not perhaps there.
         """
         window = InputWindow.of_node(self.topic_map, self.engine.window, self.spec.dt,
                                      self.p)
+        newest = t_end + window.lag + arrival_slack
         for topic, (times, rows) in self.samples.items():
-            first = max(bisect_left(times, t_end - self.span) - 1, 0)
-            last = bisect_right(times, t_end)
+            first = max(bisect_left(times, newest - self.span) - 1, 0)
+            last = bisect_right(times, newest)
             spacing = np.diff(times[first:last])
             if len(spacing) and spacing.max() > MISSED_SPACINGS * np.median(np.diff(times)):
                 raise ReForecastError(f'{topic}: a gap of {spacing.max():.1f} s in the kept '
                                       f'samples before {t_end:.3f} s (a message missed)')
             for k in range(first, last):
                 window.push(topic, times[k], rows[k])
-        return window.assemble(now=t_end)
+        return window.assemble(now=newest, until=newest)
 
     def future(self, forecast, result) -> tuple[np.ndarray, bool]:
         """Return the future controls (1, H, n_control) ``forecast`` assumed, wind held."""
@@ -146,10 +158,13 @@ class ReForecast:
             raise ReForecastError(f'its plan does not cover it: {why or "starts later"}')
         return plan_controls(rows, latest)[None], holds_wind(self.spec, rows)
 
-    def offline(self, forecast) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def offline(self, forecast, arrival_slack: float = 0.0
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """
         Recompute a Forecast message offline; return hybrid (H, n) FLU, x, y (m, ENU).
 
+        ``arrival_slack`` (s): how much later than the kept time the node may have stamped
+        a sample (messages without a header, timed here when sent); 0 for stamped ones.
         Raise ReForecastError when its model differs or its inputs were not all kept.
         """
         if str(forecast.model_id) != self.engine.model_id:
@@ -162,10 +177,10 @@ class ReForecast:
             raise ReForecastError(f'forecast at relative threshold {sent:g}, the offline '
                                   f'engine serves {served}')
         t_end = seconds_from_stamp(forecast.header.stamp)
-        result = self.window_at(t_end)
+        result = self.window_at(t_end, arrival_slack)
         if not result.ready:
             raise ReForecastError(f'no window at {t_end:.3f} s: {result.reason}')
-        if not math.isclose(result.t_end, t_end, abs_tol=1e-6):
+        if not math.isclose(result.t_end, t_end, abs_tol=max(arrival_slack, 1e-6)):
             raise ReForecastError(f'the kept states end at {result.t_end:.3f} s, the '
                                   f'forecast at {t_end:.3f} s')
         future, held = self.future(forecast, result)
@@ -175,9 +190,9 @@ class ReForecast:
         x, y, _ = frames.position_ned_to_enu(north[0], east[0])
         return frames.states_frd_to_flu(hybrid[0], self.spec.state_names), x, y
 
-    def difference(self, forecast) -> Difference:
+    def difference(self, forecast, arrival_slack: float = 0.0) -> Difference:
         """Return live minus offline for one Forecast message (``Difference``)."""
-        offline, x, y = self.offline(forecast)
+        offline, x, y = self.offline(forecast, arrival_slack)
         names = list(forecast.state_names)
         if names != list(self.spec.state_names):
             raise ReForecastError(f"forecast states {names}, the model's "
