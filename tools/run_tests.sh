@@ -29,8 +29,10 @@ echo "== pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVER
 # verdicts, so they share the cores (one process per core, a test file per process);
 # the integration tests time a live ROS graph and run alone after them.
 workers="$(python -c 'import os; print(max(1, min(len(os.sched_getaffinity(0)), 4)))')"
-pytest_run tests/unit -n "$workers" --dist loadfile
+# The slowest tests are listed at the end of each run: the suite must stay within its
+# time budget (README), and CI's log then says where the time went.
+pytest_run tests/unit -n "$workers" --dist loadfile --durations=8
 unit=$?
-pytest_run tests/integration
+pytest_run tests/integration --durations=8
 integration=$?
 [ "$unit" -eq 0 ] && [ "$integration" -eq 0 ]
