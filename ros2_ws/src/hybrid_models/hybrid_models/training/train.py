@@ -31,6 +31,7 @@ from hybrid_models.metrics import normalized_rmse_sum
 from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
 from hybrid_models.physical import CompositeModel, RegressionModel
+from hybrid_models.physical.envelope import envelope_escapes, escape_warning
 from hybrid_models.run_store import RowFile, RowWriter, build_split
 from hybrid_models.selection import (
     PHYSICS_ALONE,
@@ -347,6 +348,12 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
                                               one_step_rmse.tolist(), strict=True)),
             'residual_scale': {'from': cfg['model']['residual_scale'],
                                'std': model.residual_std.tolist()}}
+    horizon = cfg['training']['validation']['horizon'] or model.spec.horizon
+    info['physics_envelope'] = envelope_escapes(fitted, model.spec, pairs[:, :ns],
+                                                pairs[:, ns:ns + nc], horizon)
+    warning = escape_warning(info['physics_envelope'])
+    if warning:
+        print(warning, file=sys.stderr)
     info['bound']['range_from'] = ('all one-step outputs' if outputs.complete else
                                    f'a uniform sample of {outputs.capacity} of '
                                    f'{outputs.seen} one-step outputs')

@@ -1,0 +1,94 @@
+"""
+Does a fitted physical model stay inside the vessel's envelope? A check at fit time.
+
+A regression physics fitted on one-step pairs can be unstable where the recordings never
+went (a turn at a speed that was only run straight): its forecasts then diverge, and
+neither the correction's bound (relative to the physics' own output) nor the do-no-harm
+selection (against the physics alone) can hold them. So, from start rows of the
+training runs, the physics is rolled out over the horizon with the row's controls held
+(a held order is what a forecast without a plan assumes). A roll-out that leaves the
+vessel file's state limits, or stops being finite, escapes. (Actuators held at the ends
+of their ranges were tried and dropped: full astern on both shafts legitimately takes a
+model boat past its plausible astern speed, so the ends flag sound physics.)
+An escape is a warning for the user, not a refusal: a course-unstable hull may leave
+its limits in a hard turn held long enough, and the recordings decide what is true.
+Numpy only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from vessel_description import Vessel
+
+MAX_STARTS = 64   # training rows the roll-outs start from, evenly spread over the rows
+
+
+def envelope_escapes(physical, spec: Vessel, z: np.ndarray, c: np.ndarray,
+                     horizon: int, max_starts: int = MAX_STARTS) -> dict:
+    """
+    Roll ``physical`` (its numpy ``predict``) out from rows of (z, c); count escapes.
+
+    z (N, n_state), c (N, n_control): training rows in the vessel's units. Return
+    {'checked', 'rollouts', 'escaped', 'by_controls' {variant: escapes}, 'example'
+    (the earliest escape: controls, start state, state left, value, after seconds)}, or
+    {'checked': False, 'reason'} when the vessel file gives no state limits.
+    """
+    limited = [i for i, name in enumerate(spec.state_names) if name in spec.limits]
+    if not limited:
+        return {'checked': False, 'reason': 'the vessel file gives no state limits'}
+    if len(z) == 0:
+        return {'checked': False, 'reason': 'no rows to start from'}
+    pick = np.unique(np.linspace(0, len(z) - 1, min(max_starts, len(z))).round().astype(int))
+    z0 = np.asarray(z, np.float64)[pick]
+    c0 = np.asarray(c, np.float64)[pick]
+    lo = np.array([spec.limits[spec.state_names[i]][0] for i in limited])
+    hi = np.array([spec.limits[spec.state_names[i]][1] for i in limited])
+    variants = {'controls held as recorded': c0}
+    by_controls, example = {}, None
+    for name, controls in variants.items():
+        state = z0.copy()
+        escaped_at = np.full(len(z0), -1)
+        with np.errstate(all='ignore'):
+            for k in range(1, horizon + 1):
+                state = physical.predict(state, controls)
+                part = state[:, limited]
+                out = ~np.isfinite(state).all(axis=1) | ((part < lo) | (part > hi)).any(axis=1)
+                new = out & (escaped_at < 0)
+                escaped_at[new] = k
+                if new.any() and (example is None or k < example['after_steps']):
+                    example = _example(spec, name, z0, state, limited, lo, hi,
+                                       int(np.flatnonzero(new)[0]), k)
+                # Escaped roll-outs restart from their start so nothing overflows.
+                state[out] = z0[out]
+        by_controls[name] = int((escaped_at > 0).sum())
+    if example is not None:
+        example['after_s'] = round(example.pop('after_steps') * spec.dt, 3)
+    return {'checked': True, 'rollouts': len(z0) * len(variants),
+            'escaped': sum(by_controls.values()), 'by_controls': by_controls,
+            'horizon_s': horizon * spec.dt, 'example': example}
+
+
+def _example(spec, controls, z0, state, limited, lo, hi, row, step) -> dict:
+    values = state[row, limited]
+    bad = next((j for j, v in enumerate(values) if not np.isfinite(v) or not lo[j] <= v <= hi[j]),
+               0)
+    name = spec.state_names[limited[bad]]
+    return {'controls': controls, 'after_steps': step,
+            'start': {s: round(float(v), 4) for s, v in zip(spec.state_names, z0[row],
+                                                              strict=True)},
+            'state': name, 'value': float(values[bad]), 'limits': list(spec.limits[name])}
+
+
+def escape_warning(result: dict) -> str | None:
+    """Return the one-line warning for ``envelope_escapes``' result, or None."""
+    if not result.get('checked') or not result['escaped']:
+        return None
+    ex = result['example']
+    start = ', '.join(f'{k} {v:g}' for k, v in ex['start'].items())
+    return (f"physics check: the fitted physics leaves the vessel's limits in "
+            f"{result['escaped']} of {result['rollouts']} roll-outs of "
+            f"{result['horizon_s']:g} s with controls held (first: {ex['state']} "
+            f"{ex['value']:.4g} outside {ex['limits']} after {ex['after_s']:g} s from "
+            f"{start}, {ex['controls']}); its forecasts, and the hybrid's, may diverge on "
+            f'manoeuvres unlike the training runs')
