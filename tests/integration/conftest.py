@@ -27,6 +27,16 @@ INSTALL = REPO / 'ros2_ws' / 'install'
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(110 + os.getpid() % 100))
 os.environ.setdefault('ROS_LOG_DIR', str(REPO / 'ros2_ws' / 'log' / 'ros'))
+# The test process's writers repair a lost sample within 0.1 s (the profile says why);
+# processes the tests start do not inherit it (child_environment).
+TEST_PROCESS_PROFILE = Path(__file__).with_name('fastdds_test_process.xml')
+os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(TEST_PROCESS_PROFILE)
+
+
+def child_environment(**extra: str) -> dict:
+    """Return the environment of a process a test starts: this one's, without its profile."""
+    env = {k: v for k, v in os.environ.items() if k != 'FASTRTPS_DEFAULT_PROFILES_FILE'}
+    return {**env, **extra}
 
 
 def installed_executable(package: str, name: str) -> Path:
@@ -68,7 +78,7 @@ class Launcher:
               supervisor: bool = False) -> Process:
         """Start argv in its own process group, output to a log file."""
         log_path = self.log_dir / f'{name}.log'
-        child_env = dict(os.environ, PYTHONUNBUFFERED='1', **(env or {}))
+        child_env = child_environment(PYTHONUNBUFFERED='1', **(env or {}))
         with open(log_path, 'wb') as log:
             popen = subprocess.Popen(argv, stdout=log, stderr=subprocess.STDOUT,
                                      env=child_env, start_new_session=True, cwd=REPO)

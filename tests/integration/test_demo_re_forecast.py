@@ -7,6 +7,8 @@ import sys
 
 import pytest
 
+from .conftest import child_environment
+
 pytestmark = pytest.mark.ros
 
 REPO = Path(__file__).resolve().parents[2]
@@ -24,7 +26,7 @@ def test_demo_forecasts_equal_the_offline_ones_live_and_from_the_recorded_bag(tm
     demo = subprocess.run(
         [sys.executable, str(REPO / 'offline' / 'demo.py'), '--minutes', '6', '--horizon',
          '60', '--speed-up', '20', '--evaluate-every', '5', '--out', str(out), '--record',
-         str(bag)], capture_output=True, text=True, timeout=300)
+         str(bag)], capture_output=True, text=True, timeout=300, env=child_environment())
     assert demo.returncode == 0, demo.stdout[-2000:] + demo.stderr[-3000:]
     assert 'live = offline' in demo.stdout
     figures = json.loads((out / 'demo.json').read_text())
@@ -40,7 +42,8 @@ def test_demo_forecasts_equal_the_offline_ones_live_and_from_the_recorded_bag(tm
             live['tolerance_relative'], json.dumps(live)
 
     again = subprocess.run([sys.executable, str(REPO / 'offline' / 're_forecast.py'),
-                            '--bag', str(bag)], capture_output=True, text=True, timeout=300)
+                            '--bag', str(bag)], capture_output=True, text=True, timeout=300,
+                           env=child_environment())
     assert again.returncode in (0, 1), again.stderr[-2000:]
     recorded = json.loads(again.stdout)
     # As many as the predictor forecast: on a loaded machine 34 of 360 states (measured).

@@ -14,7 +14,7 @@ import subprocess
 import pytest
 import yaml
 
-from .conftest import REPO, spin_until
+from .conftest import REPO, child_environment, spin_until
 
 pytestmark = pytest.mark.ros
 
@@ -36,7 +36,8 @@ def ros2():
 
     def run(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run([str(WITH_ROSTOOLS), 'ros2', *args], capture_output=True,
-                              text=True, timeout=CLI_TIMEOUT_S, cwd=REPO)
+                              text=True, timeout=CLI_TIMEOUT_S, cwd=REPO,
+                              env=child_environment())
 
     yield run
     # Verbs without --no-daemon (echo, service call) spawn the CLI's daemon, which
