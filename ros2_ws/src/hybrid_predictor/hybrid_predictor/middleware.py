@@ -7,10 +7,10 @@ largest answer it ever held and is never given back, so under a load of concurre
 requests the predictor's resident memory climbs with every new peak of answers in flight
 (measured: +23 % in 10 minutes after warm-up). ``config/fastdds_predictor.xml`` gives the
 service's endpoints DYNAMIC history memory (freed once delivered) and every other
-endpoint rmw_fastrtps' own defaults.
+endpoint rmw_fastrtps' own defaults; every writer sends its heartbeats every 0.1 s
+(``vessel_ros_bridge.middleware``).
 
-A user's own Fast DDS configuration always wins: when any of the variables below is set,
-or another RMW implementation is selected, nothing is changed.
+A user's own Fast DDS configuration always wins (``vessel_ros_bridge.middleware``).
 """
 
 from __future__ import annotations
@@ -18,10 +18,9 @@ from __future__ import annotations
 from collections.abc import MutableMapping
 from pathlib import Path
 
+from vessel_ros_bridge.middleware import use_profile
+
 PROFILE_FILE = 'fastdds_predictor.xml'
-USER_SETTINGS = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE',
-                 'RMW_FASTRTPS_USE_QOS_FROM_XML')
-FAST_DDS = ('', 'rmw_fastrtps_cpp', 'rmw_fastrtps_dynamic_cpp')
 
 
 def use_service_profile(environ: MutableMapping[str, str], config_dir: Path) -> str:
@@ -31,15 +30,6 @@ def use_service_profile(environ: MutableMapping[str, str], config_dir: Path) -> 
     Return one line saying what was done, for the node's log. Must run before
     ``rclpy.init`` (rmw reads the variables when it creates the endpoints).
     """
-    rmw = environ.get('RMW_IMPLEMENTATION', '')
-    if rmw not in FAST_DDS:
-        return f'middleware {rmw}: its own configuration'
-    own = [name for name in USER_SETTINGS if environ.get(name)]
-    if own:
-        return f'Fast DDS configured by the user ({", ".join(own)}): profile left as set'
-    profile = config_dir / PROFILE_FILE
-    if not profile.is_file():
-        raise FileNotFoundError(f'Fast DDS profile {profile} is missing from the install')
-    environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(profile)
-    environ['RMW_FASTRTPS_USE_QOS_FROM_XML'] = '1'
-    return f'Fast DDS profile {profile}: what-if answers in dynamic history memory'
+    return use_profile(environ, config_dir / PROFILE_FILE,
+                       'what-if answers in dynamic history memory, heartbeats every 0.1 s',
+                       qos_from_xml=True)

@@ -16,6 +16,7 @@ live in ``vessel_physics``; this module only moves values between it and message
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 
@@ -34,10 +35,12 @@ from vessel_physics.simulation.config import load_simulation
 from vessel_physics.simulation.simulator import Simulator
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.lifecycle import run_node
+from vessel_ros_bridge.middleware import use_profile
 from vessel_ros_bridge.names import node_topic
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
 
 NODE_NAME = 'simulator'
+PROFILE_FILE = 'fastdds_simulator.xml'   # heartbeats every 0.1 s (vessel_ros_bridge.middleware)
 TRUE_SUFFIX = '_true'
 
 
@@ -147,6 +150,8 @@ class SimulatorNode(Node):
 
 def main(args=None) -> int:
     """Run the simulator node until interrupted; exit 2 with one line on a bad config."""
+    use_profile(os.environ, package_config('ship_sim_node', PROFILE_FILE),
+                'heartbeats every 0.1 s')
     return run_node(SimulatorNode, NODE_NAME, (ConfigError, TopicMapError, ValueError), args)
 
 
