@@ -29,9 +29,9 @@ def envelope_escapes(physical, spec: Vessel, z: np.ndarray, c: np.ndarray,
     """
     Roll ``physical`` (its numpy ``predict``) out from rows of (z, c); count escapes.
 
-    z (N, n_state), c (N, n_control): training rows in the vessel's units. Return
-    {'checked', 'rollouts', 'escaped', 'by_controls' {variant: escapes}, 'example'
-    (the earliest escape: controls, start state, state left, value, after seconds)}, or
+    z (N, n_state), c (N, n_control): training rows in the vessel's units, each row's
+    controls held. Return {'checked', 'rollouts', 'escaped', 'horizon_s', 'example' (the
+    earliest escape: start state, state left, value, limits, after seconds)}, or
     {'checked': False, 'reason'} when the vessel file gives no state limits.
     """
     limited = [i for i, name in enumerate(spec.state_names) if name in spec.limits]
@@ -41,40 +41,32 @@ def envelope_escapes(physical, spec: Vessel, z: np.ndarray, c: np.ndarray,
         return {'checked': False, 'reason': 'no rows to start from'}
     pick = np.unique(np.linspace(0, len(z) - 1, min(max_starts, len(z))).round().astype(int))
     z0 = np.asarray(z, np.float64)[pick]
-    c0 = np.asarray(c, np.float64)[pick]
+    controls = np.asarray(c, np.float64)[pick]
     lo = np.array([spec.limits[spec.state_names[i]][0] for i in limited])
     hi = np.array([spec.limits[spec.state_names[i]][1] for i in limited])
-    variants = {'controls held as recorded': c0}
-    by_controls, example = {}, None
-    for name, controls in variants.items():
-        state = z0.copy()
-        escaped_at = np.full(len(z0), -1)
-        with np.errstate(all='ignore'):
-            for k in range(1, horizon + 1):
-                state = physical.predict(state, controls)
-                part = state[:, limited]
-                out = ~np.isfinite(state).all(axis=1) | ((part < lo) | (part > hi)).any(axis=1)
-                new = out & (escaped_at < 0)
-                escaped_at[new] = k
-                if new.any() and (example is None or k < example['after_steps']):
-                    example = _example(spec, name, z0, state, limited, lo, hi,
-                                       int(np.flatnonzero(new)[0]), k)
-                # Escaped roll-outs restart from their start so nothing overflows.
-                state[out] = z0[out]
-        by_controls[name] = int((escaped_at > 0).sum())
-    if example is not None:
-        example['after_s'] = round(example.pop('after_steps') * spec.dt, 3)
-    return {'checked': True, 'rollouts': len(z0) * len(variants),
-            'escaped': sum(by_controls.values()), 'by_controls': by_controls,
+    state, escaped, example = z0.copy(), np.zeros(len(z0), bool), None
+    with np.errstate(all='ignore'):
+        for k in range(1, horizon + 1):
+            state = physical.predict(state, controls)
+            part = state[:, limited]
+            out = ~np.isfinite(state).all(axis=1) | ((part < lo) | (part > hi)).any(axis=1)
+            new = out & ~escaped
+            if new.any() and example is None:
+                example = _example(spec, z0, state, limited, lo, hi,
+                                   int(np.flatnonzero(new)[0]), k)
+            escaped |= out
+            # Escaped roll-outs restart from their start so nothing overflows.
+            state[out] = z0[out]
+    return {'checked': True, 'rollouts': len(z0), 'escaped': int(escaped.sum()),
             'horizon_s': horizon * spec.dt, 'example': example}
 
 
-def _example(spec, controls, z0, state, limited, lo, hi, row, step) -> dict:
+def _example(spec, z0, state, limited, lo, hi, row, step) -> dict:
     values = state[row, limited]
     bad = next((j for j, v in enumerate(values) if not np.isfinite(v) or not lo[j] <= v <= hi[j]),
                0)
     name = spec.state_names[limited[bad]]
-    return {'controls': controls, 'after_steps': step,
+    return {'after_s': round(step * spec.dt, 3),
             'start': {s: round(float(v), 4) for s, v in zip(spec.state_names, z0[row],
                                                               strict=True)},
             'state': name, 'value': float(values[bad]), 'limits': list(spec.limits[name])}
@@ -90,5 +82,5 @@ def escape_warning(result: dict) -> str | None:
             f"{result['escaped']} of {result['rollouts']} roll-outs of "
             f"{result['horizon_s']:g} s with controls held (first: {ex['state']} "
             f"{ex['value']:.4g} outside {ex['limits']} after {ex['after_s']:g} s from "
-            f"{start}, {ex['controls']}); its forecasts, and the hybrid's, may diverge on "
+            f"{start}); its forecasts, and the hybrid's, may diverge on "
             f'manoeuvres unlike the training runs')
