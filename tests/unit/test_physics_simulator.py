@@ -10,7 +10,7 @@ from vessel_physics.errors import ConfigError
 from vessel_physics.patrol.family import mass_matrix
 from vessel_physics.simulation.config import load_simulation as load_config
 from vessel_physics.simulation.operator import RPM
-from vessel_physics.simulation.simulator import Simulator
+from vessel_physics.simulation.simulator import Simulator, onset_weight
 
 SAMPLE_KEYS = ('t', 'u', 'v', 'p', 'r', 'phi', 'psi', 'x', 'y', 'n', 'delta_port',
                'delta_stbd', 'wind_speed', 'wind_dir_cos', 'wind_dir_sin', 'u_true', 'v_true',
@@ -188,6 +188,34 @@ def test_hook_adds_a_constant_force_as_physics_says(hook_module):
     assert control_keys == ['delta_port', 'delta_stbd', 'n']
     assert env_keys == ['current_east', 'current_north', 'wave_elevation', 'wind_dir',
                         'wind_speed']
+
+
+def test_a_hook_switched_on_mid_run_comes_in_smoothly_from_its_time(hook_module):
+    sim = Simulator(calm(extra_forces=f'{hook_module}:push_starboard',
+                         extra_forces_from_s=5.0, extra_forces_ramp_s=4.0), n_runs=2)
+    at_rest(sim)
+    v = []
+    for _ in range(12):
+        v.append(sim.advance(STOP)['v_true'][0])
+    assert v[:5] == [0.0] * 5                 # nothing until t = 5 s
+    assert 0.0 < v[5] < v[6] < v[7] < v[8]    # then the push sets in
+    free = Simulator(calm(extra_forces=f'{hook_module}:push_starboard'), n_runs=2)
+    at_rest(free)
+    first = free.advance(STOP)['v_true'][0]
+    # a second of full push adds what a push from the start gives in its first second
+    assert v[10] - v[9] == pytest.approx(first, rel=0.1)
+
+
+def test_the_onset_is_a_smoothstep():
+    assert onset_weight(3.0, None, 60.0) == 1.0
+    w = [onset_weight(t, 10.0, 4.0) for t in (9.0, 10.0, 11.0, 12.0, 14.0, 20.0)]
+    assert w[0] == w[1] == 0.0 and w[3] == 0.5 and w[4] == w[5] == 1.0
+    assert w[2] == pytest.approx(0.15625)     # 3 s^2 - 2 s^3 at s = 1/4: slope 0 at 0
+
+
+def test_an_onset_without_a_hook_is_refused_in_one_line():
+    with pytest.raises(ConfigError, match='extra_forces_from_s: .* extra_forces is null'):
+        load_config({'extra_forces_from_s': 100.0})
 
 
 def test_hook_with_wrong_output_fails_clearly(hook_module):

@@ -6,8 +6,9 @@ forecasts it every ``skill_forecast_period`` seconds with the controls the simul
 operator then applied (a plan followed: what the bands promise), and the predictor's
 own skill tracker (``hybrid_predictor.node.live_skill`` with predictor.yaml's defaults)
 is fed every measured sample, as the node feeds it. A concealed effect of
-vessel_diagnosis (hull fouling, a rudder offset) is ramped in over RAMP_S from ONSET_S;
-the control run has none. Figures are printed (``-s``).
+vessel_diagnosis (hull fouling, a rudder offset) is switched on at ONSET_S and comes in
+over RAMP_S (the scenario's ``extra_forces_from_s``, as the simulator node takes it); the
+control run has none. Figures are printed (``-s``).
 """
 
 from dataclasses import replace
@@ -19,27 +20,10 @@ import pytest
 pytestmark = pytest.mark.slow
 
 ONSET_S = 1800.0     # s of simulated time the effect starts at
-RAMP_S = 60.0        # s over which it comes in fully (the hook must be smooth)
-HOOK = 'tests.unit.test_predictor_departure_proof:{}_from_onset'
+RAMP_S = 60.0        # s over which it comes in fully
+EFFECTS = {'fouling': 'vessel_diagnosis.concealed:hull_fouling',
+           'rudder_offset': 'vessel_diagnosis.concealed:actuator_offset'}
 TIMEOUT_S = 1800     # hours of simulation and thousands of forecasts: minutes of work
-
-
-def _ramp(t: float) -> float:
-    return min(max((t - ONSET_S) / RAMP_S, 0.0), 1.0)
-
-
-def fouling_from_onset(t, state, controls, environment):
-    """Return vessel_diagnosis' hull fouling, ramped in from ONSET_S."""
-    from vessel_diagnosis.concealed import hull_fouling
-
-    return _ramp(t) * hull_fouling(t, state, controls, environment)
-
-
-def rudder_offset_from_onset(t, state, controls, environment):
-    """Return vessel_diagnosis' 1 degree rudder offset, ramped in from ONSET_S."""
-    from vessel_diagnosis.concealed import actuator_offset
-
-    return _ramp(t) * actuator_offset(t, state, controls, environment)
 
 
 def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> list[dict]:
@@ -64,7 +48,8 @@ def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> li
     horizon = spec.horizon
     cfg = load_simulation(default_config_path())
     if effect is not None:
-        cfg = replace(cfg, extra_forces=HOOK.format(effect))
+        cfg = replace(cfg, extra_forces=EFFECTS[effect], extra_forces_from_s=ONSET_S,
+                      extra_forces_ramp_s=RAMP_S)
     data = Simulator(cfg, n_runs=runs, seed=seed).run(hours * 3600.0)
     engine.warm_up(horizon, window=window, max_batch=1)
     every = int(round(p['skill_forecast_period'] / spec.dt))

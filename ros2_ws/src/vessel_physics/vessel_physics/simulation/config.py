@@ -33,6 +33,11 @@ Unmodelled-effect hook. ``extra_forces: "package.module:function"`` names a call
   patrol boat: [X, Y, K, N] about CO in FRD, N and N m), added before the mass matrix.
   It must be a smooth function of its arguments (RK4 evaluates it four times per step)
   and must not modify its inputs.
+
+``extra_forces_from_s`` switches the hook on mid-run (a vessel that departs from its
+model: fouling that sets in, a rudder knocked off its sensor): its forces are scaled by
+a smoothstep from 0 at that time to 1 ``extra_forces_ramp_s`` later. null: on from the
+start, warm-up included.
 """
 
 from __future__ import annotations
@@ -248,6 +253,8 @@ class SimConfig:
     noise: NoiseConfig
     actuators: Mapping[str, tuple[float, float, float, float]]
     extra_forces: str | None
+    extra_forces_from_s: float | None = None
+    extra_forces_ramp_s: float = 60.0
     source: str = field(default='<defaults>', compare=False)
 
     @property
@@ -421,6 +428,8 @@ SCHEMA: dict[str, Any] = {
     },
     'actuators': Servos(),
     'extra_forces': Text(None, "a hook 'module:function'", optional=True),
+    'extra_forces_from_s': Number(None, -3600.0, 1e9, 's', optional=True),
+    'extra_forces_ramp_s': Number(60.0, 0.0, 1e6, 's', lo_open=True),
 }
 
 _SECTIONS = {'operator': OperatorConfig, 'wind': WindConfig, 'waves': WavesConfig,
@@ -642,6 +651,9 @@ def load_simulation(source: str | Path | Mapping | None = None,
                           f'whole steps (0 < dt <= {MAX_DT:g} s), got {values["dt"]!r}')
     if values['extra_forces'] is not None:
         load_hook(values['extra_forces'], label)
+    elif values['extra_forces_from_s'] is not None:
+        raise ConfigError(f'{label}: extra_forces_from_s: switches the extra_forces hook on, '
+                          f'but extra_forces is null; name the hook or drop the time')
     physics_file = values['physics'] or vessel.physics
     if physics_file is None:
         raise ConfigError(f'{label}: physics: vessel {vessel.name!r} names no physics file; '
@@ -669,4 +681,7 @@ def load_simulation(source: str | Path | Mapping | None = None,
                      noise=_noise(values['noise'], vessel, label),
                      actuators=_servos(values['actuators'], physics, vessel, values['dt'],
                                        label),
-                     extra_forces=values['extra_forces'], source=label, **sections)
+                     extra_forces=values['extra_forces'],
+                     extra_forces_from_s=values['extra_forces_from_s'],
+                     extra_forces_ramp_s=values['extra_forces_ramp_s'], source=label,
+                     **sections)

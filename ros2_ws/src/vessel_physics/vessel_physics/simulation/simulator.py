@@ -55,6 +55,19 @@ def _wrap(angle):
     return np.pi - np.mod(np.pi - angle, 2 * np.pi)
 
 
+def onset_weight(t: float, from_s: float | None, ramp_s: float) -> float:
+    """
+    Return the share (0..1) of the extra_forces hook at simulation time t (s).
+
+    1 throughout when ``from_s`` is None; otherwise a smoothstep from 0 at ``from_s`` to 1
+    ``ramp_s`` later: continuous with its slope, as RK4 wants of a force.
+    """
+    if from_s is None:
+        return 1.0
+    s = min(max((t - from_s) / ramp_s, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
 class Simulator:
     """Batch simulator; see the module docstring. All arrays are float64, SI units."""
 
@@ -224,6 +237,11 @@ class Simulator:
         return dx
 
     def _call_hook(self, t, x, z_ground, c) -> np.ndarray:
+        dofs = len(self.physics.family.dofs)
+        weight = onset_weight(t, self.config.extra_forces_from_s,
+                              self.config.extra_forces_ramp_s)
+        if weight == 0.0:
+            return np.zeros((self.n_runs, dofs))
         c_north, c_east = self.current.ned(t)
         state = {name: z_ground[:, i].copy() for i, name in enumerate(self.states)}
         state['u_water'], state['v_water'] = x[:, self._u].copy(), x[:, self._v].copy()
@@ -243,12 +261,11 @@ class Simulator:
                                if self.waves.active else np.zeros(self.n_runs)),
         }
         extra = np.asarray(self._hook(t, state, controls, environment), dtype=float)
-        dofs = len(self.physics.family.dofs)
         if extra.shape != (self.n_runs, dofs) or not np.all(np.isfinite(extra)):
             raise ValueError(f'extra_forces hook {self.config.extra_forces!r} must return '
                              f'finite forces of shape ({self.n_runs}, {dofs}), got shape '
                              f'{extra.shape}')
-        return extra
+        return weight * extra
 
     # ------------------------------------------------------------------ public API
     @property
