@@ -344,8 +344,12 @@ class PredictorNode(Node):
         if now - self._said.get(key, -math.inf) < SAY_EVERY_S:
             return
         self._said[key] = now
-        logger = self.get_logger()
-        (logger.error if error else logger.warning)(text)
+        # One call line per severity: rclpy keys a logging call by its line and raises
+        # ValueError when one line logs at two severities (the node died of it).
+        if error:
+            self.get_logger().error(text)
+        else:
+            self.get_logger().warning(text)
 
     def _on_state(self, t: float, info) -> None:
         with self.lock:
