@@ -47,6 +47,7 @@ def test_a_stable_physics_stays_inside_and_an_unstable_one_is_named(tmp_path):
     warning = escape_warning(unstable)
     assert warning.startswith("physics check: the fitted physics leaves the vessel's limits")
     assert f"in {unstable['escaped']} of 64 roll-outs" in warning and 'r ' in warning
+    assert escape_warning(unstable, 'damp it').endswith('training runs; damp it')
 
 
 def test_a_vessel_without_limits_is_not_checked(tmp_path):

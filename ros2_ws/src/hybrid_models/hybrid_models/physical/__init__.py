@@ -28,8 +28,10 @@ def build_physical(cfg: dict, spec: Vessel) -> PhysicalModel:
     """
     Construct (unfitted) the physical model a config names.
 
-    Keys: ``kind``; for regressions ``ridge`` (relative, default 1e-8) and ``masks``
-    ('coupled' or 'diagonal', Hyd only); for first principles ``physics`` (kind
+    Keys: ``kind``; for regressions ``ridge`` (relative, default 1e-8), ``masks``
+    ('coupled' or 'diagonal', Hyd only) and ``damped`` (a regression alone: each state's
+    own one-step gain kept <= 1 over the vessel's envelope; default false, the paper's
+    fit); for first principles ``physics`` (kind
     'physics': a physics file's path; any kind: the mapping a checkpoint stores, with
     ``physics_source`` where it came from), ``params`` (a physics or parameter file,
     default the one the vessel file names), ``terms`` (kind 'mmg': force terms),
@@ -45,10 +47,16 @@ def build_physical(cfg: dict, spec: Vessel) -> PhysicalModel:
         raise ValueError(f'unknown physical model {kind!r}; use one of '
                          f'{FIRST_PRINCIPLES_KINDS + REGRESSION_KINDS} or first+regression, '
                          f"e.g. 'min+lin'")
+    damped = cfg.get('damped', False)
+    if not isinstance(damped, bool):
+        raise ValueError(f'physical.damped: true or false, got {damped!r}')
+    if damped and (fp_kind or not reg_kinds):
+        raise ValueError(f'physical.damped: bounds the gain of a regression that forecasts '
+                         f'the next state alone (lin, hyd, qua), not of {kind!r}')
     regression = None
     if reg_kinds:
         regression = RegressionModel(spec, reg_kinds[0], ridge=cfg.get('ridge', 1e-8),
-                                     masks=cfg.get('masks', 'coupled'))
+                                     masks=cfg.get('masks', 'coupled'), damped=damped)
     if fp_kind is None:
         return regression
     # Imported here so that regression-only models work without the vessel physics.

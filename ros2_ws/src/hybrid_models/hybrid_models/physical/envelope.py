@@ -72,8 +72,8 @@ def _example(spec, z0, state, limited, lo, hi, row, step) -> dict:
             'state': name, 'value': float(values[bad]), 'limits': list(spec.limits[name])}
 
 
-def escape_warning(result: dict) -> str | None:
-    """Return the one-line warning for ``envelope_escapes``' result, or None."""
+def escape_warning(result: dict, remedy: str | None = None) -> str | None:
+    """Return the one-line warning for ``envelope_escapes``' result (and ``remedy``), or None."""
     if not result.get('checked') or not result['escaped']:
         return None
     ex = result['example']
@@ -83,4 +83,4 @@ def escape_warning(result: dict) -> str | None:
             f"{result['horizon_s']:g} s with controls held (first: {ex['state']} "
             f"{ex['value']:.4g} outside {ex['limits']} after {ex['after_s']:g} s from "
             f"{start}); its forecasts, and the hybrid's, may diverge on "
-            f'manoeuvres unlike the training runs')
+            f'manoeuvres unlike the training runs' + (f'; {remedy}' if remedy else ''))

@@ -351,13 +351,21 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
     horizon = cfg['training']['validation']['horizon'] or model.spec.horizon
     info['physics_envelope'] = envelope_escapes(fitted, model.spec, pairs[:, :ns],
                                                 pairs[:, ns:ns + nc], horizon)
-    warning = escape_warning(info['physics_envelope'])
+    warning = escape_warning(info['physics_envelope'], _envelope_remedy(fitted))
     if warning:
         print(warning, file=sys.stderr)
     info['bound']['range_from'] = ('all one-step outputs' if outputs.complete else
                                    f'a uniform sample of {outputs.capacity} of '
                                    f'{outputs.seen} one-step outputs')
     return z_phy['train'], z_phy['val'], info
+
+
+def _envelope_remedy(physical) -> str | None:
+    """Return what a user can set against a physics that leaves the envelope, if anything."""
+    if isinstance(physical, RegressionModel) and not physical.damped:
+        return ("model.physical.damped: true keeps the regression's own gains <= 1 over the "
+                "vessel's limits")
+    return None
 
 
 def _physics_info(physical) -> dict:
