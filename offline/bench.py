@@ -10,6 +10,7 @@ an absolute time that depends on the machine) and states its goals beside the fi
     python offline/bench.py forecast   # predictor latency vs a naive loop
     python offline/bench.py soak       # concurrent what-if clients against the node
     python offline/bench.py outage     # /diagnostics while a source pauses, dies, doubles
+    python offline/bench.py departure  # the departure WARN: an effect switched on mid-run
     python offline/bench.py scale      # 1 vs 2 training processes, 10x data, 1 vs 2 workers
 """
 
@@ -28,6 +29,8 @@ SUITES = {
     'soak': ('benchmarks.soak', 'service soak: every request answered, forecasts flowing'),
     'outage': ('benchmarks.outage', 'health under outages: time to ERROR and to recovery, '
                                     'per vessel, in either clock mode'),
+    'departure': ('benchmarks.departure', 'the departure WARN through the nodes: an '
+                                          'unmodelled effect switched on mid-run'),
     'scale': ('benchmarks.scale', 'scaling out: training processes and memory, '
                                   'conversion workers'),
 }
