@@ -46,9 +46,11 @@ def test_publishes_state_actuators_and_wind_in_ros_frames(launcher, ros_node):
     wind = Collector(ros_node, Vector3Stamped, '/vessel/wind')
     clocks = []
     ros_node.create_subscription(Clock, '/clock', clocks.append, 50)
-    start_simulator(launcher, 'real_time_factor:=40.0')
+    sim = start_simulator(launcher, 'real_time_factor:=40.0')
 
     assert spin_until(ros_node, lambda: len(odom.all) >= 10 and wind.all and actuators.all, 30)
+    # Its log says which Fast DDS profile it runs with (its own: the tests give none).
+    assert 'fastdds_simulator.xml' in sim.output() and 'heartbeats every 0.1 s' in sim.output()
     stamps = sorted(odom.by_t)
     assert all(float(t).is_integer() for t in stamps), 'outputs are on whole simulated seconds'
     assert np.all(np.diff(stamps) >= 1.0)

@@ -16,6 +16,7 @@ live in ``vessel_physics``; this module only moves values between it and message
 
 from __future__ import annotations
 
+from functools import partial
 import os
 import sys
 import time
@@ -47,8 +48,10 @@ TRUE_SUFFIX = '_true'
 class SimulatorNode(Node):
     """Run one simulated vessel and publish what its sensors would."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, middleware_note: str = '', **kwargs):
         super().__init__(NODE_NAME, **kwargs)
+        if middleware_note:   # which Fast DDS profile: ours, or the user's
+            self.get_logger().info(middleware_note)
         params = declare_from_specs(
             self, load_specs(package_config('ship_sim_node', 'simulator.yaml')))
         self._params = params
@@ -150,9 +153,10 @@ class SimulatorNode(Node):
 
 def main(args=None) -> int:
     """Run the simulator node until interrupted; exit 2 with one line on a bad config."""
-    use_profile(os.environ, package_config('ship_sim_node', PROFILE_FILE),
-                'heartbeats every 0.1 s')
-    return run_node(SimulatorNode, NODE_NAME, (ConfigError, TopicMapError, ValueError), args)
+    note = use_profile(os.environ, package_config('ship_sim_node', PROFILE_FILE),
+                       'heartbeats every 0.1 s')
+    return run_node(partial(SimulatorNode, middleware_note=note), NODE_NAME,
+                    (ConfigError, TopicMapError, ValueError), args)
 
 
 if __name__ == '__main__':
