@@ -36,7 +36,8 @@ run python docs/results/real/analysis/workflow_folds.py "$WORK/kvlcc2_cv5" "$OUT
   > /dev/null
 # 8. Measured, not kept: the physics alone on unfamiliar input windows (post hoc), and
 #    smaller or weight-decayed corrections on folds 2 and 4 (the mild zig-zags; weight
-#    decay 0.0001 and the data's residual scale on all five folds), 3 seeds.
+#    decay 0.0001, the data's residual scale and no teacher phase on all five folds),
+#    3 seeds.
 run python docs/results/real/analysis/envelope_guard.py "$WORK/kvlcc2_cv5" "$OUT/cv5/guard" \
   > /dev/null
 run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
@@ -48,7 +49,11 @@ run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" 
 run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
   "$WORK/kvlcc2_cv5_scale" --folds 0 1 2 3 4 --set model.residual_scale=state_change \
   > /dev/null
-for variant in small wd wd4 scale; do
+run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
+  "$WORK/kvlcc2_cv5_noteacher" --folds 0 1 2 3 4 \
+  --set 'training.phases=[{kind: multistep, max_epochs: 60, patience: 10, lr: 0.001}]' \
+  > /dev/null
+for variant in small wd wd4 scale noteacher; do
   mkdir -p "$OUT/cv5/variant_$variant"
   cp "$WORK/kvlcc2_cv5_$variant/variant.json" "$OUT/cv5/variant_$variant/"
 done
