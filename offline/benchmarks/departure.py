@@ -150,11 +150,20 @@ def departure(effect: str = 'hull_fouling', onset: float = 1800.0, ramp: float =
     """Run the simulator with the effect and the predictor; return the figures."""
     from vessel_bringup.processes import Children, say, wait_until
 
+    from vessel_ros_bridge.parameters import load_specs, package_config
+
     hook = hook_of(effect)
     end_s = 3600.0 * hours if hours is not None else (
         onset + 2400.0 if hook is not None else 7200.0)
     predictor = {'use_sim_time': True, 'vessel': vessel, **(params or {})}
-    predictor.setdefault('forecast_period', predictor.get('skill_forecast_period', 10.0))
+    if 'forecast_period' not in predictor:
+        defaults = {s.name: s.default for s in load_specs(
+            package_config('hybrid_predictor', 'predictor.yaml'))}
+        predictor['forecast_period'] = predictor.get('skill_forecast_period',
+                                                     defaults['skill_forecast_period'])
+
+    def after_onset(stamp: float) -> bool:
+        return hook is not None and stamp - START_TIME >= onset
     log_dir = Path(log_dir or REPO / 'ros2_ws' / 'log' / 'departure')
     with tempfile.TemporaryDirectory() as tmp, Children(log_dir) as children:
         scenario = scenario_with_effect(vessel, hook, onset, ramp, operator, Path(tmp))
@@ -169,8 +178,7 @@ def departure(effect: str = 'hull_fouling', onset: float = 1800.0, ramp: float =
             say(f'departure: {effect} from {onset:g} s, {rtf:g}x real time, watching '
                 f'{end_s:g} s of simulated time')
             started = time.monotonic()
-
-            progress = [time.monotonic()]
+            progress = [started]
 
             def finished() -> bool:
                 for name, process in nodes.items():
@@ -179,21 +187,20 @@ def departure(effect: str = 'hull_fouling', onset: float = 1800.0, ramp: float =
                                            f'{watcher.newest() - START_TIME:.0f} s simulated; '
                                            f'its log: {log_dir}/vessel_{name}.log')
                 t = watcher.newest() - START_TIME
+                warns = watcher.departures()
                 if time.monotonic() - progress[0] >= PROGRESS_S:
                     progress[0] = time.monotonic()
                     say(f'departure: {max(t, 0.0):.0f} of {end_s:g} s simulated, '
-                        f'{len(watcher.departures())} departure reports so far')
-                raised = [s for s, _ in watcher.departures() if s - START_TIME >= onset]
-                return t >= end_s or (hook is not None and raised and not keep_watching)
+                        f'{len(warns)} departure reports so far')
+                raised = any(after_onset(s) for s, _ in warns)
+                return t >= end_s or (raised and not keep_watching)
 
             if not wait_until(finished, end_s / rtf * 3 + 240.0, 1.0):
                 say('departure: the simulated time did not reach its end in time')
             wall = time.monotonic() - started
             warns = watcher.departures()
-            before = [(s - START_TIME, m) for s, m in warns
-                      if hook is None or s - START_TIME < onset]
-            after = [(s - START_TIME, m) for s, m in warns
-                     if hook is not None and s - START_TIME >= onset]
+            before = [(s - START_TIME, m) for s, m in warns if not after_onset(s)]
+            after = [(s - START_TIME, m) for s, m in warns if after_onset(s)]
             skill = watcher.skill or {}
             return {
                 'effect': effect, 'hook': hook, 'onset_s': onset if hook else None,

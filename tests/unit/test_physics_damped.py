@@ -34,8 +34,7 @@ def own_gains(model, z):
     points = envelope_points(z, SNUBOAT.limits, SNUBOAT.state_names)
     weight = model.arrays()['weight']
     return np.array([(feature_slopes(model.features.array_features, points,
-                                     np.zeros((len(points), 4)), i,
-                                     float(np.ptp(points[:, i]))) @ weight[i]).max()
+                                     np.zeros((len(points), 4)), i) @ weight[i]).max()
                      for i in range(3)])
 
 

@@ -27,25 +27,15 @@ from hybrid_models.evaluation import PhysicsOnly
 from hybrid_models.metrics import forecast_metrics
 from hybrid_models.models import predict
 from hybrid_models.nets import HybridModel
+from hybrid_models.physical.envelope import beyond_limits
 from hybrid_models.studies.crossval import read_study, run_dir, study_models
 from hybrid_models.training.train import MODEL_FILE
 from vessel_datasets.format import read_dataset
 
 
-def diverged(pred: np.ndarray, spec) -> np.ndarray:
-    """Forecasts (B,) that are non-finite or leave the vessel's state limits."""
-    bad = ~np.isfinite(pred).all(axis=(1, 2))
-    for i, name in enumerate(spec.state_names):
-        if name in spec.limits:
-            lo, hi = spec.limits[name]
-            with np.errstate(invalid='ignore'):
-                bad |= ((pred[..., i] < lo) | (pred[..., i] > hi)).any(axis=1)
-    return bad
-
-
 def errors(pred: np.ndarray, windows, spec) -> dict:
     """Trajectory and end-of-horizon position error over the forecasts that stay sane."""
-    bad = diverged(pred, spec)
+    bad = beyond_limits(pred, spec).any(axis=1)
     if bad.all():
         return {'trajectory': float('nan'), 'final': float('nan'), 'diverged': int(bad.sum())}
     kept = windows.subset(~bad)
@@ -54,8 +44,8 @@ def errors(pred: np.ndarray, windows, spec) -> dict:
             'diverged': int(bad.sum())}
 
 
-def by_fold(study: Path) -> list[dict]:
-    """Return one row per fold and model (and per hybrid's physics alone)."""
+def by_fold(study: Path) -> tuple[list[dict], float]:
+    """Return one row per fold and model (and per hybrid's physics alone), and the horizon (s)."""
     folds, result = read_study(study)
     protocol = result['protocol']
     spec = read_dataset(folds[0].path).vessel
@@ -75,7 +65,7 @@ def by_fold(study: Path) -> list[dict]:
                 rows.append(summary(fold.index, fold.test, f'{label}: physics alone',
                                     [alone], len(windows)))
         print(f'fold {fold.index} done', file=sys.stderr, flush=True)
-    return rows
+    return rows, horizon * spec.dt
 
 
 def summary(fold: int, test, label: str, per_seed: list[dict], forecasts: int) -> dict:
@@ -112,10 +102,8 @@ def main(argv: list[str]) -> int:
         print(__doc__, file=sys.stderr)
         return 2
     study = Path(argv[0])
-    rows = by_fold(study)
-    _, result = read_study(study)
-    spec = read_dataset(read_study(study)[0][0].path).vessel
-    table = markdown(rows, result['protocol']['horizon'] * spec.dt)
+    rows, horizon_s = by_fold(study)
+    table = markdown(rows, horizon_s)
     print(table)
     if len(argv) == 2:
         out = Path(argv[1])

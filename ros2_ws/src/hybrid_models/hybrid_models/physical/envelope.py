@@ -42,18 +42,14 @@ def envelope_escapes(physical, spec: Vessel, z: np.ndarray, c: np.ndarray,
     pick = np.unique(np.linspace(0, len(z) - 1, min(max_starts, len(z))).round().astype(int))
     z0 = np.asarray(z, np.float64)[pick]
     controls = np.asarray(c, np.float64)[pick]
-    lo = np.array([spec.limits[spec.state_names[i]][0] for i in limited])
-    hi = np.array([spec.limits[spec.state_names[i]][1] for i in limited])
     state, escaped, example = z0.copy(), np.zeros(len(z0), bool), None
     with np.errstate(all='ignore'):
         for k in range(1, horizon + 1):
             state = physical.predict(state, controls)
-            part = state[:, limited]
-            out = ~np.isfinite(state).all(axis=1) | ((part < lo) | (part > hi)).any(axis=1)
+            out = beyond_limits(state, spec)
             new = out & ~escaped
             if new.any() and example is None:
-                example = _example(spec, z0, state, limited, lo, hi,
-                                   int(np.flatnonzero(new)[0]), k)
+                example = _example(spec, z0, state, limited, int(np.flatnonzero(new)[0]), k)
             escaped |= out
             # Escaped roll-outs restart from their start so nothing overflows.
             state[out] = z0[out]
@@ -61,15 +57,34 @@ def envelope_escapes(physical, spec: Vessel, z: np.ndarray, c: np.ndarray,
             'horizon_s': horizon * spec.dt, 'example': example}
 
 
-def _example(spec, z0, state, limited, lo, hi, row, step) -> dict:
-    values = state[row, limited]
-    bad = next((j for j, v in enumerate(values) if not np.isfinite(v) or not lo[j] <= v <= hi[j]),
-               0)
-    name = spec.state_names[limited[bad]]
+def beyond_limits(states: np.ndarray, spec: Vessel) -> np.ndarray:
+    """
+    Tell where state vectors (..., n_state) are not finite or leave the vessel's limits.
+
+    Returns a boolean array of the leading shape; states without limits count only when
+    not finite.
+    """
+    states = np.asarray(states, np.float64)
+    out = ~np.isfinite(states).all(axis=-1)
+    with np.errstate(invalid='ignore'):
+        for i, name in enumerate(spec.state_names):
+            if name in spec.limits:
+                lo, hi = spec.limits[name]
+                out |= (states[..., i] < lo) | (states[..., i] > hi)
+    return out
+
+
+def _example(spec, z0, state, limited, row, step) -> dict:
+    def leaves(i: int) -> bool:
+        lo, hi = spec.limits[spec.state_names[i]]
+        return not np.isfinite(state[row, i]) or not lo <= state[row, i] <= hi
+
+    i = next((i for i in limited if leaves(i)), limited[0])
+    name = spec.state_names[i]
     return {'after_s': round(step * spec.dt, 3),
             'start': {s: round(float(v), 4) for s, v in zip(spec.state_names, z0[row],
                                                               strict=True)},
-            'state': name, 'value': float(values[bad]), 'limits': list(spec.limits[name])}
+            'state': name, 'value': float(state[row, i]), 'limits': list(spec.limits[name])}
 
 
 def escape_warning(result: dict, remedy: str | None = None) -> str | None:

@@ -74,9 +74,8 @@ class RegressionModel(PhysicalModel):
             cols = np.flatnonzero(mask[i])
             slopes = None
             if points is not None:
-                span = float(np.ptp(points[:, i])) or 1.0
                 slopes = feature_slopes(self.features.array_features, points,
-                                        np.zeros((len(points), c.shape[1])), i, span)[:, cols]
+                                        np.zeros((len(points), c.shape[1])), i)[:, cols]
             weight[i, cols], bias[i] = ridge_lstsq(phi[:, cols], target[:, i], self.ridge,
                                                    slopes)
         self._arrays.update(weight=weight, bias=bias, fitted=np.ones((), bool))

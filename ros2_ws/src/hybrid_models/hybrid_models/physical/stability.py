@@ -48,9 +48,13 @@ def envelope_points(z: np.ndarray, limits: dict, names: tuple[str, ...],
 
 
 def feature_slopes(features: Callable, points: np.ndarray, c: np.ndarray,
-                   state: int, span: float) -> np.ndarray:
-    """Return df/dz_state (P, F) at ``points`` (controls ``c``), by central differences."""
-    h = STEP * span
+                   state: int) -> np.ndarray:
+    """
+    Return df/dz_state (P, F) at ``points`` (controls ``c``), by central differences.
+
+    The difference step is STEP times the state's span over ``points``.
+    """
+    h = STEP * (float(np.ptp(points[:, state])) or 1.0)
     up, down = points.copy(), points.copy()
     up[:, state] += h
     down[:, state] -= h
