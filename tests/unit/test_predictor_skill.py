@@ -14,16 +14,15 @@ SPEED = 5.0                          # m/s, along x
 Z90, Z50 = 1.645, 0.674              # normal quantiles of the synthetic bands
 RADIUS90, RADIUS50 = 3.0, 1.5        # m
 SETTINGS = Settings(forecast_period=1.0, window=60.0, min_samples=10, warn_coverage=0.5,
-                    clear_coverage=0.7, sustain=20.0, control_tolerance=0.05)
-N_RANGE = (0.0, 10.0)                # range of the one actuator (control column 0)
+                    clear_coverage=0.7, sustain=20.0)
 
 
 def tracker(**changes):
     settings = Settings(**{**SETTINGS.__dict__, **changes})
-    return LiveSkill(['u', 'r'], STEPS, settings, DT, actuators={0: N_RANGE})
+    return LiveSkill(['u', 'r'], STEPS, settings, DT)
 
 
-def forecast(skill, t, x0, control=5.0, bands=True):
+def forecast(skill, t, x0, bands=True):
     """Offer a model forecast from t: u = SPEED, r = 0, the track along x."""
     k = np.arange(1, H + 1)
     states = np.column_stack([np.full(H, SPEED), np.zeros(H)])
@@ -32,14 +31,13 @@ def forecast(skill, t, x0, control=5.0, bands=True):
     lower = states[None] - spread[:, None, :]
     upper = states[None] + spread[:, None, :]
     radius = np.array([np.full(H, RADIUS50), np.full(H, RADIUS90)])
-    controls = np.full((H, 1), control)
     if not bands:
-        return skill.add_forecast(t, states, x, y, controls, band_note='no calibration')
-    return skill.add_forecast(t, states, x, y, controls, (0.5, 0.9), lower, upper, radius)
+        return skill.add_forecast(t, states, x, y, band_note='no calibration')
+    return skill.add_forecast(t, states, x, y, (0.5, 0.9), lower, upper, radius)
 
 
-def run(skill, t_from, t_to, offset=0.0, seed=0, x=0.0, control=5.0, applied=None,
-        skip=(), bands=True, on_step=None, glitch=None):
+def run(skill, t_from, t_to, offset=0.0, seed=0, x=0.0, skip=(), bands=True, on_step=None,
+        glitch=None):
     """
     Measure and forecast every second.
 
@@ -52,9 +50,8 @@ def run(skill, t_from, t_to, offset=0.0, seed=0, x=0.0, control=5.0, applied=Non
         x += u * DT
         measured = u + (0.0 if glitch is None else glitch(t))
         if t not in skip:
-            skill.add_measurement(t, [measured, 0.0], x, 0.0, [control if applied is None
-                                                                else applied])
-        forecast(skill, t, x, control, bands)
+            skill.add_measurement(t, [measured, 0.0], x, 0.0)
+        forecast(skill, t, x, bands)
         if on_step is not None:
             on_step(t, skill)
     return x
@@ -137,20 +134,6 @@ def test_forecasts_without_bands_are_scored_but_not_judged():
     assert u['n'] > 0 and u['rmse'] == pytest.approx(1.0, rel=0.2) and u['coverage'] == {}
 
 
-def test_controls_the_vessel_did_not_apply_are_outside_the_promise():
-    skill = tracker()
-    # The forecasts assume n = 5 but the vessel runs n = 8 (30 % of the range off):
-    # the offset is what the wrong plan did, not the model.
-    run(skill, 0.0, 400.0, offset=1.0, control=5.0, applied=8.0)
-    assert not skill.departure().active
-    assert skill.counts['steps_scored'] == 0
-    assert skill.counts['steps_controls_departed'] > 0
-    # within the tolerance (2 % of the range) they are followed and judged
-    close = tracker()
-    run(close, 0.0, 400.0, offset=1.0, control=5.0, applied=5.2)
-    assert close.departure().active
-
-
 def test_missing_samples_leave_steps_unscored():
     skill = tracker()
     skip = {float(t) for t in range(50, 400, 7)}
@@ -186,7 +169,7 @@ def test_inconsistent_settings_are_refused(bad):
 def test_a_missing_position_is_unknown_not_outside():
     skill = tracker()
     for t in np.arange(0.0, 200.0, DT):
-        skill.add_measurement(t, [SPEED, 0.0], np.nan, np.nan, [5.0])
+        skill.add_measurement(t, [SPEED, 0.0], np.nan, np.nan)
         forecast(skill, t, SPEED * t)
     summary = skill.summary()[10]
     assert summary[POSITION]['n'] == 0 and summary[POSITION]['coverage'] == {}

@@ -206,3 +206,22 @@ def test_a_window_until_a_scheduled_state_ends_there_though_newer_states_arrived
     # The newest window holds the 80 s actuators over 81 s: what offline conversion of
     # the complete messages would not give once the 81 s ones arrive.
     assert newest.controls[-1, 0] == 90.0 + 80.0
+
+
+def test_samples_not_yet_scored_are_kept_and_a_longer_window_reaches_back_to_them():
+    window = make()
+    fill(window, 0.0, 100.0)
+    window.keep_from(40.0, reach=100.0)       # scored up to 40 s; keep at most 100 s back
+    fill(window, 101.0, 130.0)
+    longer = window.assemble(now=130.0, since=40.0)
+    assert longer.ready and len(longer.states) == 90       # 41 ... 130 s
+    assert longer.states[0, 0] == pytest.approx(state_at(41.0)['surge'])
+    assert np.array_equal(window.assemble(now=130.0).states, longer.states[-W:])
+    # beyond the reach the samples go, the window alone stays
+    fill(window, 131.0, 200.0)
+    times, _ = window.streams['/state'].arrays()
+    assert times[0] >= 200.0 - 100.0 - 1.0
+    assert not window.assemble(now=200.0, since=40.0).ready
+    window.keep_from(None, reach=100.0)
+    fill(window, 201.0, 260.0)
+    assert len(window.streams['/state'].arrays()[0]) <= W + 1 + 2.5 + 2   # keep_s, as before

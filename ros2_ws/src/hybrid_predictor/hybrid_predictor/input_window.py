@@ -73,6 +73,10 @@ class Stream:
     channels: tuple[str, ...]
     hold: bool            # every channel is held (actuators, wind): no interpolation
     keep_s: float
+    # Kept further back while not yet read for the skill: from ``floor`` (s), at most
+    # ``reach_s`` behind the newest sample.
+    floor: float = math.inf
+    reach_s: float = 0.0
     counts: StreamCounts = field(default_factory=StreamCounts)
     _times: deque = field(default_factory=deque)
     _values: deque = field(default_factory=deque)
@@ -114,7 +118,8 @@ class Stream:
         self._times.append(t)
         self._values.append(row)
         self.counts.accepted += 1
-        while len(self._times) > 2 and self._times[1] < t - self.keep_s:
+        oldest = t - max(self.keep_s, min(t - self.floor, self.reach_s))
+        while len(self._times) > 2 and self._times[1] < oldest:
             self._times.popleft()
             self._values.popleft()
         return None
@@ -344,13 +349,22 @@ class InputWindow:
         return {reason: sum(getattr(s.counts, reason) for s in self.streams.values())
                 for reason in REJECTIONS}
 
-    def assemble(self, now: float, until: float | None = None) -> Window:
+    def keep_from(self, since: float | None, reach: float) -> None:
+        """Keep the samples after ``since`` (s; None: none), at most ``reach`` s back."""
+        for stream in self.streams.values():
+            stream.floor = math.inf if since is None else since - self.max_gap
+            stream.reach_s = reach
+
+    def assemble(self, now: float, until: float | None = None,
+                 since: float | None = None) -> Window:
         """
         Build the window ending at the newest state sample, or say why it cannot.
 
         ``until`` (s) ends it at that state sample instead: the one a forecast was
         scheduled for and whose actuator and wind samples were awaited, where a newer
-        state may have arrived meanwhile without its own.
+        state may have arrived meanwhile without its own. ``since`` (s) lengthens it back
+        to the first grid point after that time, if that is more than a window (samples
+        kept by ``keep_from``).
         """
         t_end = self.streams[self.state_topic].latest_time
         if t_end is None:
@@ -360,7 +374,9 @@ class InputWindow:
             t_end = min(t_end, until)
         t_end -= self.lag
         age = now - self.lines.offset - t_end
-        grid = t_end - self.dt * np.arange(self.window - 1, -1, -1, dtype=float)
+        length = self.window if since is None else max(
+            self.window, int(math.floor((t_end - since) / self.dt + 0.5)))
+        grid = t_end - self.dt * np.arange(length - 1, -1, -1, dtype=float)
         reasons, covered = [], []
         for topic, stream in self.streams.items():
             for delay in self.stream_delays[topic]:
@@ -368,7 +384,7 @@ class InputWindow:
                 covered.append(count)
                 if reason:
                     reasons.append(reason)
-        fill = min(covered) / self.window
+        fill = min(covered) / length
         if reasons:
             return Window(False, 'incomplete', '; '.join(reasons), fill, t_end, age)
         if age > self.max_age:

@@ -7,9 +7,10 @@ message types it names, and optionally ``/vessel/control_plan``
 (hybrid_predictor_interfaces/ControlPlan).
 Outputs: ``/vessel/forecast`` (Forecast: hybrid forecast, its physical part, the
 LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path),
-``/vessel/forecast/skill`` (diagnostic_msgs/DiagnosticStatus: the live skill of matured
-forecasts, ``skill``) and ``/diagnostics`` (WARN when the vessel departs from its
-model). Service ``~/predict`` (Predict): forecasts for candidate control plans,
+``/vessel/forecast/skill`` (diagnostic_msgs/DiagnosticStatus: the live skill of the
+model, on windows forecast again with the inputs then applied once their horizon has
+passed, ``hindsight`` and ``skill``) and ``/diagnostics`` (WARN when the vessel departs
+from its model). Service ``~/predict`` (Predict): forecasts for candidate control plans,
 evaluated as one batch. Window assembly, plan checks, plausibility limits and
 health figures live in ROS-free modules of this package; the numerics in
 ``hybrid_models``.
@@ -31,7 +32,7 @@ hardware id the namespace and vessel; every message names the topics as resolved
 from __future__ import annotations
 
 from array import array
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 import math
 import os
@@ -57,6 +58,7 @@ from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import reported_steps
 from hybrid_predictor.health import Health
 from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind
+from hybrid_predictor.hindsight import Hindsight, Remade
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
@@ -112,6 +114,7 @@ class Pending:
     t: float              # its stamp (s, message clock)
     received_ns: int      # when it reached this process (ns, system clock)
     backlogged: bool      # it waited in the queue longer than backlog_skip
+    forecast: bool = True  # False: its window is only scored (skill), not forecast
 
 
 @dataclass(frozen=True)
@@ -165,7 +168,10 @@ class PredictorNode(Node):
                              state_topic=self.resolved[self.window.state_topic],
                              unbounded=unbounded)
         self.schedule = ForecastSchedule(p['forecast_period'])
-        self.skill = live_skill(self.spec, self.horizon, self.limits, p)
+        self.skill = live_skill(self.spec, self.horizon, p)
+        # The model is judged on forecasts re-made with the inputs then applied.
+        self.hindsight = Hindsight(self.skill, self._remake, p['skill_forecast_period'])
+        self.scored_until: float | None = None   # stamp of the newest row scored (s)
         # Guards the skill tracker, which the forecast and diagnostics threads share.
         self.skill_lock = threading.Lock()
         # Guards the window, the pending state, the plan, the schedule and the health
@@ -278,8 +284,10 @@ class PredictorNode(Node):
             self.schedule.reset()
             self.pending = self.deferred = None
             self.health.clock_jumped(self._now())
+            self.window.keep_from(None, 0.0)
         with self.skill_lock:
-            self.skill.reset()
+            self.hindsight.reset()
+            self.scored_until = None
         with self.count_lock:
             self.counts['clock_resets'] += 1
         self._say('clock_jump', f'clock jumped by {jump.delta.nanoseconds * 1e-9:.1f} s: '
@@ -353,15 +361,24 @@ class PredictorNode(Node):
 
     def _on_state(self, t: float, info) -> None:
         with self.lock:
-            if not self.schedule.due(t):
+            due = self.schedule.due(t)
+            # The skill needs every sample: between forecasts further apart than a
+            # window, a window is assembled for it alone before its rows fall out.
+            if not due and (self.pending is not None or not self._scoring_due(t)):
                 return
             received_ns = (info or {}).get('received_timestamp') or time.time_ns()
             # A message that waited in the queue: newer ones are probably behind it.
-            backlogged = (time.time_ns() - received_ns) * 1e-9 > self.p['backlog_skip']
-            self.pending, self.deferred = Pending(t, received_ns, backlogged), None
+            backlogged = due and (time.time_ns() - received_ns) * 1e-9 > \
+                self.p['backlog_skip']
+            self.pending = Pending(t, received_ns, backlogged, forecast=due)
+            self.deferred = None
         with self.count_lock:
             self.counts['states_skipped_as_backlog'] += backlogged
         self.forecast_trigger.trigger()
+
+    def _scoring_due(self, t: float) -> bool:
+        fed = self.scored_until
+        return fed is None or t - fed >= (self.engine.window - 2) * self.spec.dt
 
     def _resume_deferred(self) -> None:
         with self.lock:
@@ -421,16 +438,28 @@ class PredictorNode(Node):
             # The scheduled state, whose samples were awaited: not a newer one that
             # arrived meanwhile, perhaps before its actuators and wind.
             result = self._window(until=pending.t)
+            scoring = self._scoring_window(result, pending.t)
             plan = self.latest_plan
             synced = self._synced(pending.t)
             if not result.ready and not synced:
                 self.deferred = pending
-        if result.ready:
+        if result.ready and pending.forecast:
             # From a sample whose actuators or wind had not arrived when the wait was
             # over: an offline re-forecast of the same messages (re_forecast) differs.
             with self.count_lock:
                 self.counts['forecasts_before_sample_complete'] += not synced
             self._forecast_and_publish(result, plan, pending.received_ns)
+        if scoring.ready:
+            self._score(scoring)
+
+    def _scoring_window(self, result, until: float):
+        """Return ``result`` lengthened back to the newest row scored, if it falls short."""
+        fed = self.scored_until
+        if not result.ready or fed is None or \
+                result.t_end - fed <= (self.engine.window - 1) * self.spec.dt:
+            return result
+        longer = self.window.assemble(self._now(), until=until, since=fed)
+        return longer if longer.ready else result
 
     def _window(self, until: float | None = None):
         result = self.window.assemble(self._now(), until)
@@ -470,32 +499,45 @@ class PredictorNode(Node):
             self.health.record_forecast(self._now(), latency_ms, bound_hit_fraction(
                 forecast.hybrid, forecast.physics, self.engine.bound), time.monotonic())
         self.path_pub.publish(self._path_message(msg))
-        self._score(result, msg, future[0])
 
-    def _score(self, result, msg: Forecast, future: np.ndarray) -> None:
-        """Give the skill tracker the window's new measurements and the forecast."""
+    def _score(self, result) -> None:
+        """Give the skill tracker, through hindsight, the window's new measurements."""
         dt = self.spec.dt
         times = result.t_end - dt * np.arange(len(result.states) - 1, -1, -1)
         names = self.spec.state_names
-        n, horizon = len(names), msg.horizon
         with self.skill_lock:
-            fed = self.skill.newest   # the newest measurement given so far
+            fed = self.hindsight.newest   # the newest measurement given so far
             if fed is not None and result.t_end < fed:   # the source restarted or moved
-                self.skill.reset()
+                self.hindsight.reset()
+                self.scored_until = None
                 fed = None
             new = times > (-math.inf if fed is None else fed + 0.5 * dt)
             states = frames.states_frd_to_flu(result.states[new], names)
             x, y, _ = frames.position_ned_to_enu(result.poses[new, 0], result.poses[new, 1])
             for row in zip(times[new], states, x, y, result.controls[new], strict=True):
-                self.skill.add_measurement(*row)
-            if not self.skill.wants(result.t_end):
-                return
-            levels = len(msg.band_levels)
-            self.skill.add_forecast(
-                result.t_end, np.reshape(msg.hybrid, (horizon, n)), msg.x, msg.y, future,
-                msg.band_levels, np.reshape(msg.band_lower, (levels, horizon, n)),
-                np.reshape(msg.band_upper, (levels, horizon, n)),
-                np.reshape(msg.band_position_radius, (levels, horizon)), msg.band_note)
+                self.hindsight.add_measurement(*row)
+            if self.hindsight.wants(result.t_end):
+                w = self.engine.window   # the forecast's window: the newest rows
+                self.hindsight.keep(result.t_end, replace(
+                    result, states=result.states[-w:], controls=result.controls[-w:],
+                    poses=result.poses[-w:]))
+            self.scored_until = result.t_end
+        with self.lock:   # the rows not yet scored are kept, at most one horizon back
+            self.window.keep_from(self.scored_until, self.hindsight.delay)
+
+    def _remake(self, result, applied: np.ndarray) -> Remade:
+        """Return the forecast from window ``result`` under the ``applied`` controls (S, m)."""
+        pad = np.repeat(applied[-1:], self.horizon - len(applied), axis=0)
+        future = np.concatenate([applied, pad])[None]
+        forecast = self.engine.forecast(result.states, result.controls, future)
+        (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics,
+                                         [Assumed(Forecast.CONTROLS_PLAN)])
+        n, horizon, levels = len(self.spec.state_names), msg.horizon, len(msg.band_levels)
+        return Remade(np.reshape(msg.hybrid, (horizon, n)), np.asarray(msg.x),
+                      np.asarray(msg.y), tuple(msg.band_levels),
+                      np.reshape(msg.band_lower, (levels, horizon, n)),
+                      np.reshape(msg.band_upper, (levels, horizon, n)),
+                      np.reshape(msg.band_position_radius, (levels, horizon)), msg.band_note)
 
     def _withheld(self, hybrid: np.ndarray, msg: Forecast) -> str | None:
         return forecast_problem(hybrid, (np.asarray(msg.x), np.asarray(msg.y),
@@ -624,7 +666,7 @@ class PredictorNode(Node):
             departure = self.skill.departure()
             departure_line = self.skill.describe(departure)
             summary = self.skill.summary()
-            skill_counts = dict(self.skill.counts)
+            skill_counts = {**self.skill.counts, **self.hindsight.counts}
         with self.lock:
             self.health.departure = departure_line
             rejected = self.window.rejected_counts()
@@ -690,13 +732,12 @@ def check_time_parameters(p: dict) -> None:
                          f'({p["max_age"]:g} s): a fresh sample is never a restart')
 
 
-def live_skill(spec, horizon: int, limits: PlanLimits, p: dict) -> LiveSkill:
+def live_skill(spec, horizon: int, p: dict) -> LiveSkill:
     """Return the skill tracker of a vessel's forecasts (``skill_*`` parameters)."""
     settings = Settings(p['skill_forecast_period'], p['skill_window'], p['skill_min_samples'],
                         p['skill_warn_coverage'], p['skill_clear_coverage'],
-                        p['skill_sustain'], p['skill_control_tolerance'], p['skill_level'])
-    actuators = {limits.names.index(a): limits.ranges[a] for a in limits.actuators}
-    return LiveSkill(spec.state_names, reported_steps(horizon), settings, spec.dt, actuators)
+                        p['skill_sustain'], p['skill_level'])
+    return LiveSkill(spec.state_names, reported_steps(horizon), settings, spec.dt)
 
 
 def doubles(values) -> array:

@@ -10,10 +10,9 @@ measurements are given in one convention (the published one: states FLU, track E
 errors and coverage do not depend on which.
 
 The calibrated bands promise their coverage only for forecasts whose assumed controls
-the vessel then applied (``hybrid_models.bands``). A forecast is therefore followed
-until an actuator's measured value differs from the assumed one by more than
-``control_tolerance`` of the actuator's range; its later steps are not scored (counted
-as ``steps_controls_departed``), since they test the plan, not the model.
+the vessel then applied (``hybrid_models.bands``): the node gives this tracker forecasts
+re-made with the inputs measured over their horizon (``hindsight``), not the ones it
+published, which assumed a plan or held the latest inputs.
 
 Scored steps enter a rolling window of ``window`` seconds per step. Per scored step and
 quantity (each state, and ``position``) the summary gives the count, the RMSE and the
@@ -49,7 +48,6 @@ class Settings:
     warn_coverage: float      # judged band coverage below which a (quantity, step) is low
     clear_coverage: float     # coverage at which a raised (quantity, step) clears
     sustain: float            # s a (quantity, step) must stay low before it is raised
-    control_tolerance: float  # fraction of an actuator's range the applied may differ
     level: float = 0.9        # band level judged
 
     def __post_init__(self):
@@ -73,10 +71,7 @@ class _Pending:
     lower: np.ndarray | None  # (L, S, n) band edges, None without bands
     upper: np.ndarray | None
     radius: np.ndarray | None  # (L, S) position radius (m)
-    controls: np.ndarray      # (H, m) assumed controls, or (1, m) when held throughout
-    dt: float
     scored: np.ndarray        # (S,) bool
-    followed: bool = True     # the applied actuators matched the assumed ones so far
 
 
 @dataclass
@@ -124,21 +119,14 @@ class Departure:
 class LiveSkill:
     """Score kept forecasts as they mature; keep a rolling summary; detect departure."""
 
-    def __init__(self, state_names, steps, settings: Settings, step_period: float,
-                 actuators: dict[int, tuple[float, float]] | None = None):
-        """
-        Track the forecasts of ``state_names`` at ``steps`` (1 = the first forecast step).
-
-        ``step_period`` (s) is the forecasts'; ``actuators`` maps a control column to the
-        (low, high) range of an actuator whose applied value is checked.
-        """
+    def __init__(self, state_names, steps, settings: Settings, step_period: float):
+        """Track forecasts of ``state_names`` at ``steps`` (1: the first), step_period s apart."""
         self.names = (*state_names, POSITION)
         self.steps = np.array(sorted(set(int(s) for s in steps)), dtype=np.int64)
         if len(self.steps) == 0 or self.steps[0] < 1:
             raise ValueError(f'skill: scored steps must be >= 1, got {list(steps)}')
         self.settings = settings
         self.dt = float(step_period)
-        self.actuators = dict(actuators or {})
         self.pending: deque[_Pending] = deque()
         self.scores = {int(s): _Scores() for s in self.steps}
         self.levels: tuple[float, ...] = ()
@@ -147,8 +135,7 @@ class LiveSkill:
         self.newest: float | None = None
         self.low_since: dict[tuple[str, int], float] = {}
         self.raised: dict[tuple[str, int], float] = {}
-        self.counts = {'forecasts_kept': 0, 'steps_scored': 0, 'steps_missing': 0,
-                       'steps_controls_departed': 0}
+        self.counts = {'forecasts_kept': 0, 'steps_scored': 0, 'steps_missing': 0}
 
     def reset(self) -> None:
         """Forget every forecast, score and verdict (a clock or source restart)."""
@@ -160,14 +147,14 @@ class LiveSkill:
         self.raised.clear()
 
     # ------------------------------------------------------------------ input
-    def add_forecast(self, stamp: float, states: np.ndarray, x, y, controls: np.ndarray,
-                     band_levels=(), band_lower=None, band_upper=None, band_radius=None,
+    def add_forecast(self, stamp: float, states: np.ndarray, x, y, band_levels=(),
+                     band_lower=None, band_upper=None, band_radius=None,
                      band_note: str = '') -> bool:
         """
         Keep a forecast for scoring if one ``forecast_period`` passed since the last one.
 
-        ``states`` (H, n), ``x``, ``y`` (H,) at steps 1..H after ``stamp`` (s);
-        ``controls`` (H, m) the controls it assumed; bands as the Forecast carries them,
+        ``states`` (H, n), ``x``, ``y`` (H,) at steps 1..H after ``stamp`` (s); bands as
+        the Forecast carries them,
         reshaped: ``band_lower``/``band_upper`` (L, H, n), ``band_radius`` (L, H).
         Returns True if kept.
         """
@@ -184,16 +171,13 @@ class LiveSkill:
         self.levels = tuple(float(v) for v in band_levels)
         self.band_note = band_note
         banded = bool(self.levels)
-        controls = np.asarray(controls, np.float64)
-        if len(controls) and np.all(controls == controls[:1]):
-            controls = controls[:1]
         self.pending.append(_Pending(
             t0=stamp, times=stamp + steps * self.dt, states=states[k],
             xy=np.column_stack([np.asarray(x, np.float64)[k], np.asarray(y, np.float64)[k]]),
             lower=np.asarray(band_lower, np.float64)[:, k] if banded else None,
             upper=np.asarray(band_upper, np.float64)[:, k] if banded else None,
             radius=np.asarray(band_radius, np.float64)[:, k] if banded else None,
-            controls=controls, dt=self.dt, scored=np.zeros(len(steps), bool)))
+            scored=np.zeros(len(steps), bool)))
         self.last_kept = stamp
         self.counts['forecasts_kept'] += 1
         return True
@@ -203,18 +187,12 @@ class LiveSkill:
         return self.last_kept is None or not 0.0 <= stamp - self.last_kept < \
             self.settings.forecast_period
 
-    def add_measurement(self, t: float, states: np.ndarray, x: float, y: float,
-                        controls: np.ndarray) -> None:
+    def add_measurement(self, t: float, states: np.ndarray, x: float, y: float) -> None:
         """Score the pending forecasts' steps maturing at ``t`` (s) against a measurement."""
         states = np.asarray(states, np.float64)
-        controls = np.asarray(controls, np.float64)
         half = 0.5 * self.dt
         for f in self.pending:
-            if not f.followed or t <= f.t0:
-                continue
-            if not self._controls_match(f, t, controls):
-                f.followed = False
-                self.counts['steps_controls_departed'] += int((~f.scored).sum())
+            if t <= f.t0:
                 continue
             hit = np.flatnonzero(~f.scored & (np.abs(f.times - t) <= half))
             for i in hit:
@@ -222,21 +200,13 @@ class LiveSkill:
         self.newest = t if self.newest is None else max(self.newest, t)
         while self.pending and self.pending[0].times[-1] + half < t:
             done = self.pending.popleft()
-            if done.followed:
-                self.counts['steps_missing'] += int((~done.scored).sum())
+            self.counts['steps_missing'] += int((~done.scored).sum())
         self._judge(t)
-
-    def _controls_match(self, f: _Pending, t: float, controls: np.ndarray) -> bool:
-        row = f.controls[min(len(f.controls) - 1, max(0, round((t - f.t0) / f.dt) - 1))]
-        for j, (low, high) in self.actuators.items():
-            if abs(controls[j] - row[j]) > self.settings.control_tolerance * (high - low):
-                return False
-        return True
 
     def _score(self, f: _Pending, i: int, t: float, states: np.ndarray, x: float,
                y: float) -> None:
         f.scored[i] = True
-        step = int(round((f.times[i] - f.t0) / f.dt))
+        step = int(round((f.times[i] - f.t0) / self.dt))
         position_error = math.hypot(x - f.xy[i, 0], y - f.xy[i, 1])   # NaN: no position
         errors = np.append(states - f.states[i], position_error)
         inside = None
