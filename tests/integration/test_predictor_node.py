@@ -403,6 +403,8 @@ def test_matured_forecasts_are_scored_on_the_skill_topic(launcher, ros_node):
     assert skill[-1].level == DiagnosticStatus.OK, skill[-1].message
     assert 'band' in skill[-1].message
     assert int(status['u@10s_n']) > 0
+    # scored on windows forecast again with the inputs then applied (hindsight)
+    assert int(status['windows_remade']) > 0 and 'windows_gapped' in status
     assert 0.0 <= float(status['u@10s_rmse_m/s']) < 0.5        # a good model, 10 s ahead
     assert 0.0 <= float(status['position@10s_rmse_m']) < 20.0
     assert 0.0 <= float(status['u@10s_in90']) <= 1.0
