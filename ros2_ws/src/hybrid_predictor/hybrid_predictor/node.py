@@ -483,8 +483,8 @@ class PredictorNode(Node):
 
     def _forecast_and_publish(self, result, plan, received_ns: int) -> None:
         future, assumed, held = self._future_controls(result, plan)
-        forecast, future = forecast_holding_wind(self.engine, result.states, result.controls,
-                                                 future, [held])
+        forecast, _ = forecast_holding_wind(self.engine, result.states, result.controls,
+                                            future, [held])
         (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics,
                                          [assumed])
         problem = self._withheld(forecast.hybrid, msg)
