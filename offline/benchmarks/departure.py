@@ -140,10 +140,8 @@ class SkillWatcher(Watcher):
             return [(t, m) for t, level, m in self.stamped if level == WARN and DEPARTS in m]
 
 
-def departure(effect: str = 'hull_fouling', onset: float = 1800.0, ramp: float = 60.0,
-              hours: float | None = None, rtf: float = 20.0, seed: int = 11,
-              vessel: str = 'patrol_boat', operator: str = 'shipped',
-              params: dict | None = None,
+def departure(effect: str, onset: float, ramp: float, hours: float | None, rtf: float,
+              seed: int, vessel: str, operator: str, params: dict | None = None,
               log_dir: Path | None = None, keep_watching: bool = False) -> dict:
     """Run the simulator with the effect and the predictor; return the figures."""
     from vessel_bringup.processes import Children, say, wait_until

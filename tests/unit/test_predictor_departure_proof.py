@@ -37,7 +37,7 @@ def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> li
     ``delay`` how late the judgement comes (s, one horizon).
     """
     from hybrid_models.engine import Forecaster
-    from hybrid_predictor.hindsight import Hindsight, Remade
+    from hybrid_predictor.hindsight import Hindsight, Remade, applied_future
     from hybrid_predictor.node import default_model_path, live_skill
     from hybrid_predictor.plans import track
     from vessel_physics.simulation.config import default_config_path, load_simulation
@@ -64,16 +64,14 @@ def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> li
 
         def remake(i, applied, z=z, c=c, pose=pose):
             """Return the forecast from the window ending at sample i, as the node re-makes it."""
-            pad = np.repeat(applied[-1:], horizon - len(applied), axis=0)
             hybrid = engine.forecast(z[i + 1 - window:i + 1], c[i + 1 - window:i + 1],
-                                     np.concatenate([applied, pad])[None]).hybrid
+                                     applied_future(applied, horizon)).hybrid
             north, east, _ = track(hybrid, tuple(pose[i]), spec)
             lower, upper, radius = engine.bands.bounds(hybrid)
             return Remade(hybrid[0], north[0], east[0], engine.bands.levels, lower[0],
                           upper[0], radius)
 
-        hindsight = Hindsight(live_skill(spec, horizon, p), remake,
-                              p['skill_forecast_period'])
+        hindsight = Hindsight(live_skill(spec, horizon, p), remake)
         raised, affected, warn_s = None, (), 0.0
         for i in range(window, len(t)):
             hindsight.add_measurement(t[i], z[i], pose[i, 0], pose[i, 1], c[i])

@@ -41,8 +41,8 @@ def orders(t):
     return 10.0 if (t // 25) % 2 == 0 else 14.0
 
 
-def tracker():
-    return LiveSkill(['u', 'r'], STEPS, SETTINGS, DT)
+def tracker(**changes):
+    return LiveSkill(['u', 'r'], STEPS, Settings(**{**SETTINGS.__dict__, **changes}), DT)
 
 
 def sail(feed, t_to, offset=0.0, skip=(), seed=0):
@@ -61,7 +61,7 @@ def sail(feed, t_to, offset=0.0, skip=(), seed=0):
 
 
 def with_hindsight(offset=0.0, t_to=600.0, skip=()):
-    hindsight = Hindsight(tracker(), remake, SETTINGS.forecast_period)
+    hindsight = Hindsight(tracker(), remake)
     raised = []
 
     def feed(t, u, x, n):
@@ -116,7 +116,7 @@ def test_the_tracker_sees_one_time_line_in_order_and_each_forecast_before_its_st
             seen.append(('f', stamp))
             return super().add_forecast(stamp, *args)
 
-    hindsight = Hindsight(Recorder(['u', 'r'], STEPS, SETTINGS, DT), remake, 5.0)
+    hindsight = Hindsight(Recorder(['u', 'r'], STEPS, SETTINGS, DT), remake)
     sail(lambda t, u, x, n: (hindsight.add_measurement(t, [u, 0.0], x, 0.0, [n]),
                              hindsight.keep(t, x)), 200.0)
     times = [t for _, t in seen]
@@ -137,7 +137,7 @@ def test_the_applied_controls_are_the_measured_ones_at_each_step():
         got.append((window, applied[:, 0].copy()))
         return remake(window, applied)
 
-    hindsight = Hindsight(tracker(), spy, 5.0)
+    hindsight = Hindsight(tracker(), spy)
     sail(lambda t, u, x, n: (hindsight.add_measurement(t, [u, 0.0], x, 0.0, [n]),
                              hindsight.keep(t, t)), 120.0)
     for stamp, applied in got:
@@ -153,7 +153,7 @@ def test_a_window_whose_inputs_have_a_gap_is_scored_only_before_it():
         got.append((stamp, len(applied)))
         return remake(x, applied)
 
-    hindsight = Hindsight(tracker(), spy, 5.0)
+    hindsight = Hindsight(tracker(), spy)
     skip = {float(t) for t in range(100, 110)}
     sail(lambda t, u, x, n: (hindsight.add_measurement(t, [u, 0.0], x, 0.0, [n]),
                              hindsight.keep(t, (t, x))), 300.0, skip=skip)
@@ -167,7 +167,7 @@ def test_a_window_whose_inputs_have_a_gap_is_scored_only_before_it():
 
 
 def test_time_going_back_starts_again_and_memory_is_bounded():
-    hindsight = Hindsight(tracker(), remake, 5.0)
+    hindsight = Hindsight(tracker(), remake)
     for t in np.arange(0.0, 300.0, DT):
         hindsight.add_measurement(t, [5.0, 0.0], 5.0 * t, 0.0, [10.0])
         hindsight.keep(t, 5.0 * t)
@@ -179,6 +179,8 @@ def test_time_going_back_starts_again_and_memory_is_bounded():
     assert hindsight.skill.summary()[10]['u']['n'] == 0
 
 
-def test_a_non_positive_period_is_refused():
-    with pytest.raises(ValueError, match='hindsight'):
-        Hindsight(tracker(), remake, 0.0)
+def test_windows_are_kept_one_per_the_trackers_period_and_a_non_positive_one_is_refused():
+    hindsight = Hindsight(tracker(forecast_period=10.0), remake)
+    assert sum(hindsight.keep(t, 0.0) for t in np.arange(0.0, 30.0, 1.0)) == 3
+    with pytest.raises(ValueError, match='forecast_period'):
+        Hindsight(tracker(forecast_period=0.0), remake)

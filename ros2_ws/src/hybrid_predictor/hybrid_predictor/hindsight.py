@@ -10,8 +10,8 @@ departure WARN on a vessel that matched its model exactly (32 reports in 1.5 h,
 about the model alone, so it is asked of forecasts made, once the horizon has passed,
 from the same window and the inputs that were measured meanwhile.
 
-``Hindsight`` keeps one window per ``forecast_period`` of message time and the measured
-samples since; it hands the skill tracker (``skill.LiveSkill``) the measurements
+``Hindsight`` keeps one window per the tracker's ``forecast_period`` of message time and
+the measured samples since; it hands the skill tracker (``skill.LiveSkill``) the measurements
 ``delay`` seconds late (the longest scored step), and at each kept window's stamp in
 that late stream the forecast re-made from it by ``remake(window, applied)``, before
 the measurements it is scored against. The tracker thus sees one time line, in order,
@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from hybrid_predictor.skill import LiveSkill
+from hybrid_predictor.skill import LiveSkill, period_passed
 
 
 @dataclass(frozen=True)
@@ -63,24 +63,25 @@ class Remade:
     band_note: str = ''
 
 
+def applied_future(applied: np.ndarray, horizon: int) -> np.ndarray:
+    """Return the future controls (1, horizon, m): ``applied`` (K, m), then its last row held."""
+    pad = np.repeat(applied[-1:], horizon - len(applied), axis=0)
+    return np.concatenate([applied, pad])[None]
+
+
 class Hindsight:
     """Feed a skill tracker late, with each kept window's forecast re-made in hindsight."""
 
-    def __init__(self, skill: LiveSkill, remake: Callable[[Any, np.ndarray], Remade],
-                 forecast_period: float):
+    def __init__(self, skill: LiveSkill, remake: Callable[[Any, np.ndarray], Remade]):
         """
-        Feed ``skill``; keep a window per ``forecast_period`` (s) for ``remake``.
+        Feed ``skill``; keep a window per its ``forecast_period`` (s) for ``remake``.
 
         ``remake(window, applied)`` returns the forecast from ``window`` (whatever the
         caller keeps) under ``applied`` (K, m), the measured controls at steps 1..K (K is
         the longest scored step S, or less before a gap), at least K steps of it.
         """
-        if forecast_period <= 0:
-            raise ValueError(f'hindsight: forecast_period must be positive, got '
-                             f'{forecast_period}')
         self.skill = skill
         self.remake = remake
-        self.period = forecast_period
         self.dt = skill.dt
         self.steps = int(skill.steps.max())
         self.delay = self.steps * self.dt
@@ -98,7 +99,7 @@ class Hindsight:
 
     def wants(self, stamp: float) -> bool:
         """Tell whether a window ending at ``stamp`` (s) would be kept."""
-        return self.last_kept is None or not 0.0 <= stamp - self.last_kept < self.period
+        return period_passed(self.last_kept, stamp, self.skill.settings.forecast_period)
 
     def keep(self, stamp: float, window: Any) -> bool:
         """Keep ``window`` (its newest sample at ``stamp``) if one period passed; say if kept."""

@@ -58,7 +58,7 @@ from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import reported_steps
 from hybrid_predictor.health import Health
 from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind
-from hybrid_predictor.hindsight import Hindsight, Remade
+from hybrid_predictor.hindsight import Hindsight, Remade, applied_future
 from hybrid_predictor.input_window import InputWindow
 from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
@@ -170,8 +170,10 @@ class PredictorNode(Node):
         self.schedule = ForecastSchedule(p['forecast_period'])
         self.skill = live_skill(self.spec, self.horizon, p)
         # The model is judged on forecasts re-made with the inputs then applied.
-        self.hindsight = Hindsight(self.skill, self._remake, p['skill_forecast_period'])
-        self.scored_until: float | None = None   # stamp of the newest row scored (s)
+        self.hindsight = Hindsight(self.skill, self._remake)
+        # The newest row scored (s): hindsight.newest, copied where the input thread reads
+        # it without the skill lock.
+        self.scored_until: float | None = None
         # Guards the skill tracker, which the forecast and diagnostics threads share.
         self.skill_lock = threading.Lock()
         # Guards the window, the pending state, the plan, the schedule and the health
@@ -527,9 +529,8 @@ class PredictorNode(Node):
 
     def _remake(self, result, applied: np.ndarray) -> Remade:
         """Return the forecast from window ``result`` under the ``applied`` controls (S, m)."""
-        pad = np.repeat(applied[-1:], self.horizon - len(applied), axis=0)
-        future = np.concatenate([applied, pad])[None]
-        forecast = self.engine.forecast(result.states, result.controls, future)
+        forecast = self.engine.forecast(result.states, result.controls,
+                                        applied_future(applied, self.horizon))
         (msg,) = self._forecast_messages(result, forecast.hybrid, forecast.physics,
                                          [Assumed(Forecast.CONTROLS_PLAN)])
         n, horizon, levels = len(self.spec.state_names), msg.horizon, len(msg.band_levels)

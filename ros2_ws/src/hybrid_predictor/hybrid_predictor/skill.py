@@ -60,6 +60,11 @@ class Settings:
                              f'clear_coverage ({self.clear_coverage}) <= 1')
 
 
+def period_passed(last: float | None, stamp: float, period: float) -> bool:
+    """Tell whether ``stamp`` (s) is a ``period`` after ``last`` (or the time line went back)."""
+    return last is None or not 0.0 <= stamp - last < period
+
+
 @dataclass
 class _Pending:
     """A kept forecast at its scored steps, waiting for them to mature."""
@@ -154,8 +159,8 @@ class LiveSkill:
         Keep a forecast for scoring if one ``forecast_period`` passed since the last one.
 
         ``states`` (H, n), ``x``, ``y`` (H,) at steps 1..H after ``stamp`` (s); bands as
-        the Forecast carries them,
-        reshaped: ``band_lower``/``band_upper`` (L, H, n), ``band_radius`` (L, H).
+        the Forecast carries them, reshaped: ``band_lower``/``band_upper`` (L, H, n),
+        ``band_radius`` (L, H).
         Returns True if kept.
         """
         if not self.wants(stamp):
@@ -184,8 +189,7 @@ class LiveSkill:
 
     def wants(self, stamp: float) -> bool:
         """Tell whether a forecast stamped ``stamp`` (s) would be kept."""
-        return self.last_kept is None or not 0.0 <= stamp - self.last_kept < \
-            self.settings.forecast_period
+        return period_passed(self.last_kept, stamp, self.settings.forecast_period)
 
     def add_measurement(self, t: float, states: np.ndarray, x: float, y: float) -> None:
         """Score the pending forecasts' steps maturing at ``t`` (s) against a measurement."""
