@@ -161,3 +161,34 @@ def test_folds_validate_on_runs_long_enough_for_a_forecast(toy, tmp_path):
             assert max(lengths[run] for run in fold.val) >= 200, (seed, fold.val)
     with pytest.raises(ValueError, match='to validate on'):
         make_folds(ds, tmp_path / 'x', 2, min_val_samples=261)
+
+
+def test_folds_balanced_by_samples_deal_long_recordings_apart(toy, tmp_path):
+    import copy
+
+    from vessel_datasets.format import Dataset, read_dataset
+
+    ds = read_dataset(toy)
+    manifest = copy.deepcopy(ds.manifest)
+    # Two long recordings among four short ones: dealt by count, a seed can put both
+    # long ones into one fold; dealt by samples, never.
+    lengths = [2000, 1900, 300, 280, 260, 250]
+    for entry, n in zip(manifest['runs'], lengths, strict=True):
+        entry['n_samples'] = n
+    ds = Dataset(ds.root, manifest)
+    long_ones = {e['id'] for e in manifest['runs'][:2]}
+
+    def totals(folds):
+        size = {e['id']: e['n_samples'] for e in manifest['runs']}
+        return sorted(sum(size[r] for r in f.test) for f in folds)
+
+    by_count = [make_folds(ds, tmp_path / f'c{seed}', 3, seed=seed) for seed in range(8)]
+    assert any(long_ones <= set(f.test) for folds in by_count for f in folds)
+    for seed in range(8):
+        folds = make_folds(ds, tmp_path / f's{seed}', 3, seed=seed, balance='samples')
+        assert sorted(r for f in folds for r in f.test) == sorted(ds.run_ids())
+        assert not any(long_ones <= set(f.test) for f in folds)
+        # Greedy longest-first: {2000}, {1900}, {300, 280, 260, 250} -> 2000/1900/1090.
+        assert totals(folds) == [1090, 1900, 2000], seed
+    with pytest.raises(ValueError, match='balance must be'):
+        make_folds(ds, tmp_path / 'bad', 3, balance='runs')

@@ -73,6 +73,11 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--fold-by', metavar='REGEX',
                         help="one fold per distinct match of REGEX in the recordings' "
                              "names, e.g. one per kind of manoeuvre (instead of --folds)")
+    parser.add_argument('--fold-balance', choices=('recordings', 'samples'),
+                        default='recordings',
+                        help='deal each fold as many recordings (default), or as many '
+                             'samples as whole recordings allow (recordings of very '
+                             'different lengths)')
     parser.add_argument('--val-fraction', type=float, default=0.1,
                         help="share of a fold's other recordings that validate (0.1)")
     parser.add_argument('--fold-seed', type=int, default=0,
@@ -95,7 +100,7 @@ def folds_of(dataset, args) -> list:
     """
     window, horizon, _ = evaluation_protocol(dataset.vessel, args.window, args.horizon, 1)
     return make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
-                      args.fold_by, window + horizon)
+                      args.fold_by, window + horizon, args.fold_balance)
 
 
 def stopwatch() -> Callable[[str], None]:

@@ -74,12 +74,15 @@ class ModelPlan:
 
 def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
                val_fraction: float = 0.1, fold_by: str | None = None,
-               min_val_samples: int = 0) -> list[Fold]:
+               min_val_samples: int = 0, balance: str = 'recordings') -> list[Fold]:
     """
     Write the fold views under ``out/folds`` and return them.
 
     ``folds`` None keeps the dataset's split (one fold). Otherwise recordings are
-    shuffled with ``seed`` and dealt into ``folds`` test groups. ``fold_by`` (a regular
+    shuffled with ``seed`` and dealt into ``folds`` test groups: as many recordings each
+    (``balance`` 'recordings'), or as many samples as whole recordings allow ('samples':
+    the longest recording first, each into the group with the fewest samples so far,
+    as scikit-learn's GroupKFold deals groups). ``fold_by`` (a regular
     expression) instead makes one fold per distinct match in the recordings' names, e.g.
     one per kind of manoeuvre; recordings it does not match always train. Of each fold's
     other recordings, ``val_fraction`` (at least one) validate and the rest train; a
@@ -95,7 +98,7 @@ def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
             raise ValueError(f'val_fraction must be in (0, 1), got {val_fraction}')
         names = sorted(recordings)
         order = [names[i] for i in np.random.default_rng(seed).permutation(len(names))]
-        groups, notes = _test_groups(order, folds, fold_by, dataset)
+        groups, notes = _test_groups(order, folds, fold_by, dataset, balance)
         splits = []
         for k, test in enumerate(groups):
             rest = [r for r in order if r not in test]
@@ -133,7 +136,7 @@ def _long_enough_first(names: list[str], recordings: dict[str, list[str]], datas
 
 
 def _test_groups(order: list[str], folds: int | None, fold_by: str | None,
-                 dataset: Dataset) -> tuple[list[list[str]], list[str]]:
+                 dataset: Dataset, balance: str) -> tuple[list[list[str]], list[str]]:
     """Return the recordings each fold tests, and what each fold is."""
     if fold_by is not None:
         pattern = re.compile(fold_by)
@@ -147,8 +150,29 @@ def _test_groups(order: list[str], folds: int | None, fold_by: str | None,
     if not 2 <= folds <= len(order):
         raise ValueError(f'folds must be between 2 and the {len(order)} recordings of '
                          f'{dataset.root}, got {folds}')
-    groups = [list(g) for g in np.array_split(np.asarray(order, dtype=object), folds)]
-    return groups, [f'fold {k} of {folds} (recordings shuffled)' for k in range(folds)]
+    if balance == 'recordings':
+        groups = [list(g) for g in np.array_split(np.asarray(order, dtype=object), folds)]
+        return groups, [f'fold {k} of {folds} (recordings shuffled)' for k in range(folds)]
+    if balance != 'samples':
+        raise ValueError(f"balance must be 'recordings' or 'samples', got {balance!r}")
+    size = recording_samples(dataset)
+    groups, totals = [[] for _ in range(folds)], np.zeros(folds)
+    # Longest first, ties in the shuffled order (a stable sort): each recording joins
+    # the group with the fewest samples so far.
+    for rec in sorted(order, key=lambda name: -size[name]):
+        k = int(np.argmin(totals))
+        groups[k].append(rec)
+        totals[k] += size[rec]
+    groups = [[rec for rec in order if rec in group] for group in groups]
+    return groups, [f'fold {k} of {folds} (recordings shuffled, {int(totals[k])} samples)'
+                    for k in range(folds)]
+
+
+def recording_samples(dataset: Dataset) -> dict[str, int]:
+    """Return each recording's samples, summed over its runs."""
+    samples = {r['id']: int(r['n_samples']) for r in dataset.manifest['runs']}
+    return {name: sum(samples[run] for run in runs)
+            for name, runs in dataset.recordings().items()}
 
 
 def run_dir(out: Path, label: str, fold: Fold, seed: int) -> Path:
