@@ -171,7 +171,7 @@ def test_folds_balanced_by_samples_deal_long_recordings_apart(toy, tmp_path):
     ds = read_dataset(toy)
     manifest = copy.deepcopy(ds.manifest)
     # Two long recordings among four short ones: dealt by count, a seed can put both
-    # long ones into one fold; dealt by samples, never.
+    # long ones into one fold; dealt by samples (the default), never.
     lengths = [2000, 1900, 300, 280, 260, 250]
     for entry, n in zip(manifest['runs'], lengths, strict=True):
         entry['n_samples'] = n
@@ -182,10 +182,11 @@ def test_folds_balanced_by_samples_deal_long_recordings_apart(toy, tmp_path):
         size = {e['id']: e['n_samples'] for e in manifest['runs']}
         return sorted(sum(size[r] for r in f.test) for f in folds)
 
-    by_count = [make_folds(ds, tmp_path / f'c{seed}', 3, seed=seed) for seed in range(8)]
+    by_count = [make_folds(ds, tmp_path / f'c{seed}', 3, seed=seed, balance='recordings')
+                for seed in range(8)]
     assert any(long_ones <= set(f.test) for folds in by_count for f in folds)
     for seed in range(8):
-        folds = make_folds(ds, tmp_path / f's{seed}', 3, seed=seed, balance='samples')
+        folds = make_folds(ds, tmp_path / f's{seed}', 3, seed=seed)   # the default
         assert sorted(r for f in folds for r in f.test) == sorted(ds.run_ids())
         assert not any(long_ones <= set(f.test) for f in folds)
         # Greedy longest-first: {2000}, {1900}, {300, 280, 260, 250} -> 2000/1900/1090.

@@ -7,13 +7,15 @@ Compare models over seeds and over folds of whole recordings, each held out once
     ros2 run hybrid_models crossval ...          # the same program, installed
 
 Without --folds the dataset's own split is used (one fold). With --folds K the
-recordings are dealt into K test groups (a seeded shuffle; runs cut from one recording
-stay together), and of the other recordings --val-fraction validate and the rest train,
-so every recording is forecast by models that never saw it. Every model is trained with
-every seed on every fold (resumable: a finished training is kept, a killed one
-continues), --jobs at a time. Test forecasts of all folds are pooled; a row is the mean
-± standard deviation over the seeds. Every distinct physics of the hybrids gets a row,
-and each hybrid seed is checked against its own physics at every reported horizon step.
+recordings are dealt into K test groups of about equal samples (a seeded shuffle, the
+longest recordings first; runs cut from one recording stay together; --fold-balance
+recordings deals equal counts instead), and of the other recordings --val-fraction
+validate and the rest train, so every recording is forecast by models that never saw
+it. Every model is trained with every seed on every fold (resumable: a finished
+training is kept, a killed one continues), --jobs at a time. Test forecasts of all
+folds are pooled; a row is the mean ± standard deviation over the seeds. Every distinct
+physics of the hybrids gets a row, and each hybrid seed is checked against its own
+physics at every reported horizon step.
 
 Writes into --out: report.md, table.md, results.json (every number, per seed and per
 fold), position_error_over_horizon.png, folds/ (the fold views) and runs/ (the
@@ -73,11 +75,10 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--fold-by', metavar='REGEX',
                         help="one fold per distinct match of REGEX in the recordings' "
                              "names, e.g. one per kind of manoeuvre (instead of --folds)")
-    parser.add_argument('--fold-balance', choices=('recordings', 'samples'),
-                        default='recordings',
-                        help='deal each fold as many recordings (default), or as many '
-                             'samples as whole recordings allow (recordings of very '
-                             'different lengths)')
+    parser.add_argument('--fold-balance', choices=('samples', 'recordings'),
+                        default='samples',
+                        help='deal each fold about as many samples as whole recordings '
+                             'allow (default), or as many recordings')
     parser.add_argument('--val-fraction', type=float, default=0.1,
                         help="share of a fold's other recordings that validate (0.1)")
     parser.add_argument('--fold-seed', type=int, default=0,

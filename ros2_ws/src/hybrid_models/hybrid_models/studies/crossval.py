@@ -74,15 +74,16 @@ class ModelPlan:
 
 def make_folds(dataset: Dataset, out: Path, folds: int | None, seed: int = 0,
                val_fraction: float = 0.1, fold_by: str | None = None,
-               min_val_samples: int = 0, balance: str = 'recordings') -> list[Fold]:
+               min_val_samples: int = 0, balance: str = 'samples') -> list[Fold]:
     """
     Write the fold views under ``out/folds`` and return them.
 
     ``folds`` None keeps the dataset's split (one fold). Otherwise recordings are
-    shuffled with ``seed`` and dealt into ``folds`` test groups: as many recordings each
-    (``balance`` 'recordings'), or as many samples as whole recordings allow ('samples':
-    the longest recording first, each into the group with the fewest samples so far,
-    as scikit-learn's GroupKFold deals groups). ``fold_by`` (a regular
+    shuffled with ``seed`` and dealt into ``folds`` test groups of about as many samples
+    as whole recordings allow (``balance`` 'samples': the longest recording first, each
+    into the group with the fewest samples so far, as scikit-learn's GroupKFold deals
+    groups), or of as many recordings ('recordings': a few long recordings can then
+    make one fold hold a third of the data). ``fold_by`` (a regular
     expression) instead makes one fold per distinct match in the recordings' names, e.g.
     one per kind of manoeuvre; recordings it does not match always train. Of each fold's
     other recordings, ``val_fraction`` (at least one) validate and the rest train; a
