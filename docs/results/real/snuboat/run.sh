@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Derive every snuboat figure in docs/results/real/README.md from the original bags.
 # Usage (repo root, after `make setup`): docs/results/real/snuboat/run.sh [SHARED_REAL] [WORK]
-# About an hour on 2 cores (20 + 18 trainings of a minute or two; a second call keeps
+# About two hours on 2 cores (20 + 18 + 75 trainings of a minute or two; a second call keeps
 # every finished training).
 set -euo pipefail
 REAL="${1:-../shared/real}"
@@ -46,3 +46,25 @@ done
 # the forecasts that diverged.
 run python docs/results/real/analysis/study_by_fold.py "$WORK/snuboat_bykind" \
   "$OUT/bykind" > /dev/null
+# Cross-validated bands (docs/results/real/bands.md): five folds x five seeds of the
+# hybrid, folds dealt by samples (the default; fold seeds 0 and 1) and by count of
+# recordings (the former dealing); bands calibrated on each study's out-of-fold
+# forecasts, fold-robust (the default) and pooled, at the threshold the hybrids serve.
+cv_bands() {  # NAME FOLD_BALANCE FOLD_SEED
+  local study="$WORK/snu_cv5_$1" model="$WORK/snu_cv_$1.safetensors"
+  run python offline/crossval.py --dataset "$WORK/snuboat_ds" --out "$study" --folds 5 \
+    --fold-balance "$2" --fold-seed "$3" --seeds 5 --model "hybrid=$CONFIGS/hybrid.yaml" \
+    > /dev/null
+  run python offline/set_threshold.py "$study/runs/hybrid/fold0/seed0/model.safetensors" 1.0 \
+    --out "$model" > /dev/null
+  mkdir -p "$OUT/cv5_$1"
+  for calibration in fold-robust pooled; do
+    run python offline/set_bands.py "$model" --study "$study" --model hybrid \
+      --calibration "$calibration" 2> /dev/null > "$OUT/cv5_$1/bands_$calibration.md"
+  done
+  cp "$study"/{report.md,table.md,results.json} "$OUT/cv5_$1/"
+  sed -i "s#$WORK/#\$WORK/#g" "$OUT/cv5_$1"/*.md "$OUT/cv5_$1/results.json"
+}
+cv_bands samples0 samples 0
+cv_bands samples1 samples 1
+cv_bands counts0 recordings 0
