@@ -379,6 +379,9 @@ class PredictorNode(Node):
         self.forecast_trigger.trigger()
 
     def _scoring_due(self, t: float) -> bool:
+        # Two steps before the oldest unscored row would leave a window of rows ending
+        # at t: assembled then, every row reaches the skill (_scoring_window lengthens a
+        # window that starts later than the rows already scored).
         fed = self.scored_until
         return fed is None or t - fed >= (self.engine.window - 2) * self.spec.dt
 

@@ -126,7 +126,7 @@ def fold_dir(out: Path, index: int) -> Path:
 def _long_enough_first(names: list[str], recordings: dict[str, list[str]], dataset: Dataset,
                        min_samples: int, fold: int) -> list[str]:
     """Reorder ``names`` so recordings with a run of ``min_samples`` come first."""
-    samples = {r['id']: int(r['n_samples']) for r in dataset.manifest['runs']}
+    samples = run_samples(dataset)
     longest = {name: max(samples[run] for run in recordings[name]) for name in names}
     long = [name for name in names if longest[name] >= min_samples]
     if not long:
@@ -169,9 +169,14 @@ def _test_groups(order: list[str], folds: int | None, fold_by: str | None,
                     for k in range(folds)]
 
 
+def run_samples(dataset: Dataset) -> dict[str, int]:
+    """Return each run's samples, by run id."""
+    return {r['id']: int(r['n_samples']) for r in dataset.manifest['runs']}
+
+
 def recording_samples(dataset: Dataset) -> dict[str, int]:
     """Return each recording's samples, summed over its runs."""
-    samples = {r['id']: int(r['n_samples']) for r in dataset.manifest['runs']}
+    samples = run_samples(dataset)
     return {name: sum(samples[run] for run in runs)
             for name, runs in dataset.recordings().items()}
 
