@@ -150,3 +150,34 @@ def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launc
     assert not np.allclose(answer.forecasts[0].hybrid, answer.forecasts[1].hybrid)
     refused = ask([wrong])
     assert not refused.success and f"{boat.actuator_names[0]} in 'rpm'" in refused.message
+
+
+def test_no_input_topic_of_the_predictor_waits_for_another(trained, ros_node):
+    # rclpy's executor offers a callback group's ready subscriptions in a fixed order: when
+    # the inputs shared one group, a state topic the node could not keep up with won every
+    # turn and the actuators were not read (CI: a what-if refused for "actuators silent
+    # for 2.8 s" behind this simulator at 4x on a loaded machine; 28 of 40 what-ifs behind
+    # it at 10x, none once each topic had a group of its own). Each input topic, and the
+    # plan topic, needs a group no other callback is in, and a thread for it.
+    from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+    from rclpy.parameter import Parameter
+
+    from hybrid_predictor.node import PLAN_TOPIC, PredictorNode, executor_threads
+
+    vessel, checkpoint = trained
+    node = PredictorNode(context=ros_node.context, parameter_overrides=[
+        Parameter('model_path', value=str(checkpoint)), Parameter('vessel', value=vessel)])
+    try:
+        topics = {*node.resolved.values(), node.resolve_topic_name(PLAN_TOPIC)}
+        inputs = [s for s in node.subscriptions if s.topic_name in topics]
+        assert len(inputs) == len(node.readers) + 1, [s.topic_name for s in node.subscriptions]
+        groups = [s.callback_group for s in inputs]
+        assert all(isinstance(g, MutuallyExclusiveCallbackGroup) for g in groups)
+        others = [e.callback_group for e in (*node.subscriptions, *node.timers,
+                                             *node.services, *node.guards)
+                  if e not in inputs]
+        assert len({id(g) for g in groups}) == len(groups)
+        assert not {id(g) for g in groups} & {id(g) for g in others}
+        assert executor_threads(node) >= len(groups) + node.p['service_capacity'] + 3
+    finally:
+        node.destroy_node()

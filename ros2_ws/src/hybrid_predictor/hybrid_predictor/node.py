@@ -15,13 +15,16 @@ evaluated as one batch. Window assembly, plan checks, plausibility limits and
 health figures live in ROS-free modules of this package; the numerics in
 ``hybrid_models``.
 
-Threads (a MultiThreadedExecutor, see ``executor_for``): input and plan subscriptions
-share one mutually exclusive callback group and only read, check and store samples;
-forecasting runs in a group of its own, woken by a guard condition; ``~/predict`` is
-reentrant but admits at most ``service_capacity`` requests at a time and answers
-the rest "busy" at once, before taking any lock the other threads hold; /clock,
-parameters and /diagnostics keep the default group. None of them waits for another,
-so no input callback starves.
+Threads (a MultiThreadedExecutor, see ``executor_for``): each input topic and the plan
+topic has a mutually exclusive callback group of its own (one topic's samples stay in
+order) and only reads, checks and stores samples; forecasting runs in a group of its
+own, woken by a guard condition; ``~/predict`` is reentrant but admits at most
+``service_capacity`` requests at a time and answers the rest "busy" at once, before
+taking any lock the other threads hold; /clock, parameters and /diagnostics keep the
+default group. None of them waits for another, so no input callback starves: rclpy
+offers a group's ready subscriptions in a fixed order, and when the inputs shared one
+group a state topic the node could not keep up with won every turn and held the
+actuators back (a what-if refused for "actuators silent" behind a simulator at 10x).
 
 Health is judged on two clocks (``health``): message time and a steady wall clock, so a
 paused or dead source under use_sim_time, which stops /clock with it, is ERROR too. The
@@ -211,7 +214,6 @@ class PredictorNode(Node):
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
         self.skill_pub = self.create_publisher(DiagnosticStatus, SKILL_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        inputs = MutuallyExclusiveCallbackGroup()
         input_qos = QoSProfile(depth=p['input_queue_depth'], reliability=(
             ReliabilityPolicy.RELIABLE if p['reliable_inputs'] else ReliabilityPolicy.BEST_EFFORT))
         self.readers = {}
@@ -219,9 +221,9 @@ class PredictorNode(Node):
             self.readers[topic] = channel_reader(self.topic_map, topic)
             self.create_subscription(msg_class, self.resolved[topic],
                                      partial(self._on_input, topic), input_qos,
-                                     callback_group=inputs)
+                                     callback_group=MutuallyExclusiveCallbackGroup())
         self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10,
-                                 callback_group=inputs)
+                                 callback_group=MutuallyExclusiveCallbackGroup())
         self.forecast_trigger = self.create_guard_condition(
             self._forecast_worker, callback_group=MutuallyExclusiveCallbackGroup())
         # Every request is read and answered (success, failure or busy): reliable and
@@ -767,13 +769,18 @@ def followed(plan: ControlPlan) -> Assumed:
 
 
 def executor_for(node: PredictorNode) -> MultiThreadedExecutor:
-    """
-    Return the executor the predictor spins in.
+    """Return the executor the predictor spins in, with ``executor_threads(node)``."""
+    return MultiThreadedExecutor(num_threads=executor_threads(node))
 
-    One thread per admitted request, plus one each for inputs, forecasting, the default
-    group and the "busy" answers, so no group ever waits for a free thread.
+
+def executor_threads(node: PredictorNode) -> int:
     """
-    return MultiThreadedExecutor(num_threads=node.p['service_capacity'] + 4)
+    Return the threads the node's executor needs so no callback group waits for one.
+
+    One per admitted request, one per input topic and the plan topic, and one each for
+    forecasting, the default group and the "busy" answers.
+    """
+    return node.p['service_capacity'] + len(node.readers) + 4
 
 
 def main(args=None) -> int:
