@@ -45,6 +45,34 @@ def open_study(study: Path) -> tuple[list[Fold], dict, object, list[str]]:
     return folds, result['protocol'], read_dataset(folds[0].path).vessel, hybrids
 
 
+def over_folds(argv: list[str], usage: str, per_fold):
+    """
+    Run ``per_fold(study, fold, hybrids, protocol, spec)`` on every fold of STUDY.
+
+    ``argv`` is [STUDY, OUT]; otherwise ``usage`` is printed and None returned. Return
+    (per fold results, protocol, vessel, hybrid labels, OUT made); a line on stderr as
+    each fold is done.
+    """
+    if len(argv) != 2:
+        print(usage, file=sys.stderr)
+        return None
+    study, out = Path(argv[0]), Path(argv[1])
+    folds, protocol, spec, hybrids = open_study(study)
+    results = []
+    for fold in folds:
+        results.append(per_fold(study, fold, hybrids, protocol, spec))
+        print(f'fold {fold.index} of {len(folds)} done', file=sys.stderr, flush=True)
+    out.mkdir(parents=True, exist_ok=True)
+    return results, protocol, spec, hybrids, out
+
+
+def write_result(stem: Path, data, text: str) -> None:
+    """Write ``data`` to STEM.json and ``text`` to STEM.md, and print the text."""
+    stem.with_suffix('.json').write_text(json.dumps(data, indent=2))
+    stem.with_suffix('.md').write_text(text)
+    print(text)
+
+
 def pooled_over_runs(per_run_seed, forecasts) -> tuple[float, float]:
     """
     Return the mean and sd over seeds of an error pooled over runs.
@@ -125,20 +153,12 @@ def markdown(rows: list[dict], hybrids: list[str], horizon_s: float) -> str:
 
 def main(argv: list[str]) -> int:
     """Break a workflow study down by fold and run; write folds.md and folds.json."""
-    if len(argv) != 2:
-        print(__doc__, file=sys.stderr)
+    done = over_folds(argv, __doc__, fold_rows)
+    if done is None:
         return 2
-    study, out = Path(argv[0]), Path(argv[1])
-    folds, protocol, spec, hybrids = open_study(study)
-    rows = []
-    for fold in folds:
-        rows += fold_rows(study, fold, hybrids, protocol, spec)
-        print(f'fold {fold.index}: {len(rows)} runs so far', file=sys.stderr, flush=True)
-    out.mkdir(parents=True, exist_ok=True)
-    horizon_s = protocol['horizon'] * spec.dt
-    (out / 'folds.json').write_text(json.dumps(rows, indent=2))
-    (out / 'folds.md').write_text(markdown(rows, hybrids, horizon_s))
-    print(markdown(rows, hybrids, horizon_s))
+    per_fold, protocol, spec, hybrids, out = done
+    rows = [row for rows in per_fold for row in rows]
+    write_result(out / 'folds', rows, markdown(rows, hybrids, protocol['horizon'] * spec.dt))
     return 0
 
 

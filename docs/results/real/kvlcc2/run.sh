@@ -73,6 +73,11 @@ for physics in nominal augmented; do
   run python offline/set_bands.py "$model" --study "$WORK/kvlcc2_cv5_by_samples" \
     --model "hybrid on $physics physics" 2> /dev/null > "$OUT/cv5_by_samples/bands_$physics.md"
 done
+# 10. Which model the folds' own validation runs would have served (post hoc, from the
+#    checkpoints of step 9): the lowest validation score among each physics alone and
+#    the hybrid on each, per fold and seed.
+run python docs/results/real/analysis/workflow_choice.py "$WORK/kvlcc2_cv5_by_samples" \
+  "$OUT/cv5_by_samples" > /dev/null
 for study in heldout cv5 hyd cv5_by_samples; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
