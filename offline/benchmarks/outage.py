@@ -75,10 +75,10 @@ class Watcher:
     def __init__(self, namespaces: list[str]):
         from diagnostic_msgs.msg import DiagnosticArray
         import rclpy
-        from rclpy.executors import MultiThreadedExecutor
         from vessel_bringup.processes import rclpy_options
 
         from hybrid_predictor_interfaces.msg import Forecast
+        from vessel_ros_bridge.executors import MultiThreadedExecutor
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context, **rclpy_options())

@@ -165,10 +165,10 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
           predictor_params) -> dict:
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
-    from rclpy.executors import MultiThreadedExecutor
     from vessel_bringup.processes import rclpy_options
 
     from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge.executors import MultiThreadedExecutor
     from vessel_ros_bridge.messages import seconds_from_stamp
 
     children.node('ship_sim_node', 'simulator', params={'seed': 5, 'real_time_factor': rtf})

@@ -182,9 +182,9 @@ class Graph:
     def __init__(self, name: str):
         from diagnostic_msgs.msg import DiagnosticArray
         import rclpy
-        from rclpy.executors import MultiThreadedExecutor
 
         from hybrid_predictor_interfaces.msg import Forecast
+        from vessel_ros_bridge.executors import MultiThreadedExecutor
 
         self.context = rclpy.Context()
         rclpy.init(context=self.context)

@@ -375,11 +375,11 @@ def test_silence_turns_diagnostics_error_within_two_forecast_periods(fed):
 def test_an_unbounded_model_is_a_warning_unless_the_user_allowed_it(tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
-    from rclpy.executors import MultiThreadedExecutor
 
     from hybrid_models.cli.set_threshold import set_threshold
     from hybrid_predictor.node import default_model_path
     from hybrid_predictor_interfaces.msg import Forecast
+    from vessel_ros_bridge.executors import MultiThreadedExecutor
 
     model = tmp_path / 'unbounded.safetensors'
     set_threshold(default_model_path(), None, model)

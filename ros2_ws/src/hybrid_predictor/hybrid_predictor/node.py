@@ -52,7 +52,6 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.clock import Clock, ClockType, JumpThreshold
 from rclpy.duration import Duration
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -85,6 +84,7 @@ from vessel_datasets.topic_messages import channel_reader
 from vessel_description import VesselError
 from vessel_physics import frames
 from vessel_ros_bridge import messages
+from vessel_ros_bridge.executors import MultiThreadedExecutor
 from vessel_ros_bridge.lifecycle import run_node
 from vessel_ros_bridge.names import node_topic
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
