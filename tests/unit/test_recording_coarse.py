@@ -97,6 +97,43 @@ def test_a_right_map_passes_on_coarse_data_and_a_wrong_one_still_fails(tmp_path)
     assert not mirrored['yaw_rate'].ok and 'sign flip' in mirrored['yaw_rate'].message
 
 
+
+def zigzag_log(path, rate_hz=7.4):
+    """
+    Write a ship's 10 min zig-zag logged at ``rate_hz``, every number printed to 3 digits.
+
+    North runs to 4.8 km (10 m steps beyond 1 km) while east stays within a few hundred
+    metres, finely printed: the steps differ by magnitude within one column pair.
+    """
+    t = np.arange(int(600 * rate_hz)) / rate_hz
+    psi = np.radians(15.0) * np.sin(2 * np.pi * t / 150.0)
+    r = np.gradient(psi, t)
+    u, v = 8.0 - 0.3 * (psi / psi.max()) ** 2, -0.15 * np.sin(2 * np.pi * t / 150.0 + 0.3)
+    north_dot = u * np.cos(psi) - v * np.sin(psi)
+    east_dot = u * np.sin(psi) + v * np.cos(psi)
+    north = np.concatenate([[0.0], np.cumsum(0.5 * (north_dot[1:] + north_dot[:-1]) / rate_hz)])
+    east = np.concatenate([[0.0], np.cumsum(0.5 * (east_dot[1:] + east_dot[:-1]) / rate_hz)])
+    pd.DataFrame({'time': t, 'vn_kn': north_dot / KNOT, 've_kn': east_dot / KNOT,
+                  'r_deg': np.degrees(r), 'hdg_deg': np.degrees(psi) % 360.0,
+                  'north_m': north, 'east_m': east, 'rpm': 90.0 + 0 * t,
+                  'rudder_deg': -15.0 * np.sign(np.sin(2 * np.pi * t / 150.0 + 0.4))}
+                 ).to_csv(path, index=False, float_format='%.3g')
+    return path
+
+
+def test_steps_that_grow_with_the_value_are_judged_where_they_are_coarsest(tmp_path):
+    path = zigzag_log(tmp_path / 'zigzag.csv')
+    zigzag_map = SHIP_MAP | {'rate_hz': 7.4}
+    _, result, checks = convert(path, zigzag_map)
+    position = result.report['resolution']['position']
+    assert position['step'] >= 5.0, position   # the 10 m steps, not the fine ones near 0
+    assert all(c.ok for c in checks.values()), [c.line() for c in checks.values()]
+    # Earth-frame velocities mapped as body ones still fail on the same coarse track.
+    _, _, body = convert(path, zigzag_map | {'velocity': {
+        'frame': 'body', 'surge': 'vn_kn', 'sway': 've_kn', 'unit': 'knots'}})
+    assert not body['course'].ok, body['course'].line()
+
+
 # ----------------------------------------------------------------- GPS only
 BOAT = parse_vessel({
     'name': 'gps_boat', 'rate_hz': 1.0, 'window_s': 5.0, 'horizon_s': 20.0,

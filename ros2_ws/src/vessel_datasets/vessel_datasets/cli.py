@@ -26,6 +26,7 @@ from .sources import Reader, RecordingError
 from .topic_map import TopicMap
 
 EXIT_OK, EXIT_NOTHING, EXIT_USAGE = 0, 1, 2
+GAPS_LISTED = 5   # gaps of a recording listed one per line; the rest in one line
 EXIT_STATUS = """\
 exit status: 0 when a dataset was written (or --dry-run passed), 1 when nothing usable
 remained, 2 on a usage error or failed map checks.
@@ -182,7 +183,12 @@ def _announce(result: Result, bar, unit: str) -> None:
               f'{len(rep["gaps"])} gap(s), {len(rep["short_runs"])} short run(s) dropped; '
               f'dropped: ' + ', '.join(f'{n} {reason.replace("_", " ")}'
                                        for reason, n in dropped.items()), file=sys.stderr)
-    for gap in rep['gaps']:
+    gaps = rep['gaps']
+    for gap in gaps[:GAPS_LISTED]:
         sources = gap['sources'] if gap['sources'] == 'all' else ', '.join(gap['sources'])
         bar.write(f'  gap on {sources}: {gap["start"]} to {gap["end"]} '
                   f'({gap["duration_s"]:.1f} s)', file=sys.stderr)
+    if len(gaps) > GAPS_LISTED:   # the manifest keeps every one
+        rest = [g['duration_s'] for g in gaps[GAPS_LISTED:]]
+        bar.write(f'  ... and {len(rest)} more gaps of {min(rest):.1f}-{max(rest):.1f} s, the '
+                  f'last ending at {gaps[-1]["end"]}', file=sys.stderr)

@@ -262,7 +262,8 @@ def consistency_checks(table: pd.DataFrame, topic_map: TopicMap, ctx: Context
     course = np.degrees(np.angle(np.exp(1j * (np.arctan2(a[1], a[0])
                                               - np.arctan2(b[1], b[0])))))[moving]
     course_stats = _angles('course', course, speed[moving])
-    lags = _lags(t, col, phi, ctx, w_vel, w_head, b, moving, vessel.rate_hz)
+    lags = _lags(t, col, phi, ctx, (w_vel, w_head, width('yaw_rate')), b, moving,
+                 vessel.rate_hz)
     # A lag shorter than a sample period (the grid's or the recording's) is no lag.
     lags['tolerance_s'] = max(1.0 / vessel.rate_hz, ctx.interval_s)
     checks.append(_timing(lags, ctx, vessel.rate_hz))
@@ -301,33 +302,40 @@ def consistency_checks(table: pd.DataFrame, topic_map: TopicMap, ctx: Context
     return checks
 
 
-def _lags(t, col, phi, ctx: Context, w_vel: int, w_head: int, b_head, moving,
+def _lags(t, col, phi, ctx: Context, widths: tuple[int, int, int], b_head, moving,
           rate_hz: float) -> dict[str, Any]:
     """
     Cost curves of the three lags (``timing``); a lag is left out where not measurable.
 
     Under the floors of the other checks (a vessel slower than ``MIN_SPEED``, a heading
     turning slower than ``MIN_RATE``) the curves would match noise against noise: a
-    still vessel's lag is not measured rather than found by chance.
+    still vessel's lag is not measured rather than found by chance. Nor is a lag whose
+    comparison must be smoothed over more than ``timing.MAX_TIMED_SCALE_S`` for the
+    resolution of its columns (``widths``: samples of the position, heading and yaw-rate
+    comparisons); those are listed under 'coarse'.
     """
     ks = timing.shifts(rate_hz)
     out: dict[str, Any] = {}
+    w_vel, w_head, w_rate = widths
+    coarse = [q for q, w in zip(timing.QUANTITIES, widths, strict=True)
+              if w / rate_hz > timing.MAX_TIMED_SCALE_S]
+    if coarse:
+        out['coarse'] = coarse
     speed_v = _smooth(np.hypot(col['u'], col['v'] * np.cos(phi)), w_vel)
-    if 'track' not in ctx.derived and _rms(speed_v) >= MIN_SPEED:
+    if 'track' not in ctx.derived and _rms(speed_v) >= MIN_SPEED and 'position' not in coarse:
         speed_p = _smooth(np.hypot(np.gradient(col['x'], t), np.gradient(col['y'], t)),
                           w_vel)
         out['position'] = timing.cost_curve(speed_v, speed_p, ks)
-    if _rms(np.hypot(*b_head)[moving]) >= MIN_SPEED:
+    if _rms(np.hypot(*b_head)[moving]) >= MIN_SPEED and 'heading' not in coarse:
         # The heading the velocity implies: the track's course less the body drift angle.
         implied = np.arctan2(b_head[1], b_head[0]) - np.arctan2(_smooth(col['v'], w_head),
                                                                 _smooth(col['u'], w_head))
         implied = np.where(moving, implied, np.nan)
         out['heading'] = timing.cost_curve(implied, col['psi'], ks, angle=True)
-    w = max(w_head, 1)
-    heading_rate = _smooth(np.gradient(col['psi'], t), w)
-    if 'r' not in ctx.derived and _rms(heading_rate) >= MIN_RATE:
-        out['yaw_rate'] = timing.cost_curve(heading_rate, _smooth(col['r'] * np.cos(phi), w),
-                                            ks)
+    heading_rate = _smooth(np.gradient(col['psi'], t), w_rate)
+    if 'r' not in ctx.derived and _rms(heading_rate) >= MIN_RATE and 'yaw_rate' not in coarse:
+        out['yaw_rate'] = timing.cost_curve(heading_rate,
+                                            _smooth(col['r'] * np.cos(phi), w_rate), ks)
     return out
 
 
@@ -352,11 +360,14 @@ def _timing(curves: Mapping[str, Any], ctx: Context, rate_hz: float,
             if q in curves}
     detail = {'kind': 'timing', 'rate_hz': rate_hz, **curves}
     found = {q: v for q, v in lags.items() if v is not None}
+    too_coarse = curves.get('coarse', [])
+    coarse = f'; too coarse to time: {", ".join(too_coarse)}' if too_coarse else ''
     if not found:
+        why = ('' if len(too_coarse) == len(timing.QUANTITIES) else
+               'too little turning or speed change') + coarse
         return Check(name, None, expected, True, None,
-                     'skipped: no lag is measurable (too little turning or speed change)',
-                     detail)
-    text = ', '.join(f'{q} {v:+.2f} s' for q, v in found.items())
+                     f'skipped: no lag is measurable ({why.lstrip("; ")})', detail)
+    text = ', '.join(f'{q} {v:+.2f} s' for q, v in found.items()) + coarse
     worst = max(abs(v) for v in found.values())
     if worst <= tol or not judge:
         verdict = 'ok' if worst <= tol else 'judged over all runs'
@@ -636,6 +647,8 @@ def aggregate(per_run: Mapping[str, Sequence[Check]], ctx: Context) -> list[Chec
                     cur['n'] = [x + y for x, y in zip(cur['n'], v['n'], strict=True)]
                 elif k == 'tolerance_s':
                     acc[k] = max(acc.get(k, 0.0), v)
+                elif k == 'coarse':   # quantities too coarse to time in some run
+                    acc[k] = sorted(set(acc.get(k, ())) | set(v), key=timing.QUANTITIES.index)
                 elif isinstance(v, (int, float)) and not isinstance(v, bool) and \
                         k != 'rate_hz':
                     acc[k] = acc.get(k, 0) + v

@@ -9,6 +9,13 @@ step, and returns the time over which the step falls to ``ERROR_SHARE`` of the t
 change: the map checks smooth both sides of a comparison over at least that long, so a
 right map on coarse data passes and a wrong one still fails. ``note`` says it in one
 line naming the map entry, its step and how often it really changes.
+
+The step of a number printed to a few significant digits grows with its size: a track
+printed to three digits moves in 0.1 m steps near its start, 10 m steps beyond 1 km,
+and its other coordinate may stay near zero, finely printed, for the whole run. So the
+step is measured per magnitude band of the values (``BANDS_PER_DECADE``), each sample
+takes its band's step, and the channel's step is a high percentile of those
+(``COARSE_PERCENTILE``): the coarse stretches are what a check must allow for.
 """
 
 from __future__ import annotations
@@ -23,6 +30,9 @@ COARSE_STEP = 0.1        # and so is one whose step is this share of its typical
 ERROR_SHARE = 0.05       # a step allowed per scale, as a share of the change over it
 STEP_PERCENTILE = 5      # the step is this percentile of the non-zero changes (robust)
 FLOAT_NOISE = 1e-9       # relative change below which two values count as equal
+BANDS_PER_DECADE = 4     # magnitude bands a decade of values is cut into for their steps
+MIN_BAND_CHANGES = 5     # changes a band needs for a step of its own (else the overall one)
+COARSE_PERCENTILE = 90   # the channel's step: this percentile of its samples' band steps
 EARTH_RADIUS_M = 6371000.0  # only to express degree steps in metres in a note
 
 
@@ -67,7 +77,8 @@ def analyse(quantity: str, t_ns: np.ndarray, values: np.ndarray, unit: str,
     if moved.sum() < 3:
         return None
     repeats = 1.0 - float(moved.mean())
-    step = float(np.percentile(np.abs(d[d != 0]), STEP_PERCENTILE))
+    step = max(float(np.percentile(np.abs(d[d != 0]), STEP_PERCENTILE)),
+               _magnitude_step(x[:-1], d))
     typical = float(np.median(np.linalg.norm(d[moved], axis=1)))
     if repeats < MIN_REPEAT_SHARE and step < COARSE_STEP * typical:
         return None
@@ -76,6 +87,31 @@ def analyse(quantity: str, t_ns: np.ndarray, values: np.ndarray, unit: str,
     change_s = duration / int(moved.sum())
     scale = max(step / (ERROR_SHARE * rate) if rate > 0 else math.inf, 2.0 * change_s)
     return Resolution(quantity, step, unit, repeats, change_s, scale)
+
+
+def _magnitude_step(x: np.ndarray, d: np.ndarray) -> float:
+    """
+    Return the channel's step where its values are coarsest (module docstring).
+
+    ``x`` (n, k) the values before each change ``d`` (n, k). Per component, the non-zero
+    changes are grouped by the magnitude band of the value they start from; a sample's
+    step is the largest of its components' band steps; the ``COARSE_PERCENTILE`` of
+    the samples' steps is returned (0 when no band has enough changes).
+    """
+    per_sample = np.zeros(len(d))
+    for j in range(d.shape[1]):
+        magnitude = np.abs(x[:, j])
+        band = np.floor(np.log10(np.maximum(magnitude, np.finfo(float).tiny))
+                        * BANDS_PER_DECADE)
+        changed = d[:, j] != 0
+        steps = np.zeros(len(d))
+        for b in np.unique(band[changed]):
+            in_band = band == b
+            if (in_band & changed).sum() >= MIN_BAND_CHANGES:
+                steps[in_band] = np.percentile(np.abs(d[in_band & changed, j]),
+                                               STEP_PERCENTILE)
+        per_sample = np.maximum(per_sample, steps)
+    return float(np.percentile(per_sample, COARSE_PERCENTILE))
 
 
 def note(res: Resolution, label: str, column: str, period_s: float) -> str:

@@ -26,6 +26,9 @@ import numpy as np
 
 MAX_LAG_S = 3.0        # shifts tried: up to this far either way
 MIN_CONTRAST = 0.05    # a cost curve flatter than this (relative) says nothing
+# A comparison smoothed over longer than this for its columns' resolution (a track
+# printed in 10 m steps: 20-30 s) blurs lags of a few seconds into its noise: not timed.
+MAX_TIMED_SCALE_S = 2 * MAX_LAG_S
 QUANTITIES = ('position', 'heading', 'yaw_rate')
 
 
