@@ -80,3 +80,38 @@ def test_invalid_runs_are_refused_with_the_reason(tmp_path, corrupt, message):
 def test_a_directory_without_manifest_is_not_a_dataset(tmp_path):
     with pytest.raises(DatasetError, match='not a dataset'):
         read_dataset(tmp_path)
+
+
+def test_a_physics_file_of_the_vessels_own_travels_with_the_dataset(tmp_path):
+    import shutil
+
+    import yaml
+
+    from vessel_datasets.format import resplit
+    from vessel_description.vessel import vessels_dir
+    from vessel_physics.files import config_dir
+    from vessel_physics.physics_file import load_physics
+
+    # A user's vessel file naming a physics file beside it (a packaged MMG file renamed).
+    user = tmp_path / 'user'
+    user.mkdir()
+    shutil.copyfile(config_dir() / 'kvlcc2_hsva_mmg.yaml', user / 'my_tanker_mmg.yaml')
+    data = yaml.safe_load((vessels_dir() / 'kvlcc2_hsva.yaml').read_text())
+    data.update(name='my_tanker', physics='my_tanker_mmg.yaml')
+    (user / 'my_tanker.yaml').write_text(yaml.safe_dump(data))
+    vessel = load_vessel(user / 'my_tanker.yaml')
+    runs = {f'run_{i}': pd.DataFrame(
+        {**{c: np.zeros(10) for c in vessel.dataset_columns}, 't': np.arange(10) / 10.0})
+        for i in range(3)}
+    write_dataset(tmp_path / 'ds', runs, vessel=vessel, provenance={'tool': 'test'})
+    shutil.rmtree(user)   # the dataset must not need the user's folder any more
+    ds = read_dataset(tmp_path / 'ds')
+    assert ds.vessel.physics == 'physics_my_tanker_mmg.yaml'
+    carried = load_physics(ds.vessel.physics, ds.vessel)
+    assert carried.params.L_pp == 7.0 and carried.family.name == 'mmg'
+    view = resplit(ds, tmp_path / 'view', {'train': ['run_0'], 'test': ['run_1']})
+    assert load_physics(view.vessel.physics, view.vessel).params == carried.params
+    # A packaged physics file is named as it is: every installation has it.
+    write_dataset(tmp_path / 'ds2', runs, vessel=load_vessel('kvlcc2_hsva'),
+                  provenance={'tool': 'test'})
+    assert read_dataset(tmp_path / 'ds2').vessel.physics == 'kvlcc2_hsva_mmg.yaml'

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from vessel_datasets import carried_physics
 from vessel_description import Vessel, VesselError
 
 FORMAT = 'vessel-dataset/1'
@@ -107,8 +108,9 @@ def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], 
     as extra).
     ``split`` overrides the seeded 60/10/30 assignment with explicit run ids.
     ``run_sources`` gives per-run provenance (e.g. the bag and time span it came
-    from). The manifest is written last, through a temporary file, so a crash never
-    leaves a directory that looks complete.
+    from). A physics file of the vessel's own (not a packaged one) is written into the
+    dataset (``carried_physics``). The manifest is written last, through a temporary
+    file, so a crash never leaves a directory that looks complete.
     """
     if not runs:
         raise DatasetError('no runs to write')
@@ -116,6 +118,7 @@ def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], 
     (out / RUNS_DIR).mkdir(parents=True, exist_ok=True)
     for run_id, table in runs.items():
         validate_run(run_id, table, vessel.dataset_columns)
+    vessel = carried_physics.carry(vessel, out)
     if split is None:
         split_ids = split_runs(list(runs), seed, fractions)
     else:
@@ -274,6 +277,7 @@ def resplit(dataset: Dataset, out_dir: str | os.PathLike,
         link.symlink_to((dataset.root / entry['file']).resolve())
         entry['split'] = split_of.get(entry['id'], 'unused')
     manifest['split'] = {**manifest['split'], **ids}
+    carried_physics.carry_into_view(dataset.vessel, dataset.root, out)
     manifest['provenance'] = {'resplit_of': str(dataset.root), 'note': note,
                               'original': manifest.get('provenance', {})}
     path = out / MANIFEST
