@@ -6,6 +6,7 @@ import shutil
 
 import pytest
 
+from hybrid_models.checkpoint import load_model
 from hybrid_models.cli import crossval
 from hybrid_models.studies.crossval import make_folds
 from hybrid_models.toy import write_toy_dataset
@@ -62,10 +63,18 @@ def test_crossval_trains_every_seed_and_fold_and_pools_their_forecasts(toy, tmp_
     assert crossval.main(args + sum((['--set', s] for s in SHORT), [])) == 0
     result = json.loads((out / 'results.json').read_text())
     assert result['protocol']['folds'] == 2 and result['protocol']['seeds'] == [0, 1]
-    hybrid, physics = result['rows']
+    hybrid, ensemble, physics = result['rows']
     assert hybrid['seeds'] == 2 and len(hybrid['per_seed']) == 2
     assert hybrid['physics'] == [physics['label']] == ['lin physics']
     assert len(hybrid['harms_vs_physics']) == 2
+    # Each fold's seeds are also served as one ensemble, checked against the same physics.
+    assert ensemble['label'] == 'hybrid, ensemble of 2 seeds'
+    assert ensemble['physics'] == hybrid['physics'] and len(ensemble['harms_vs_physics']) == 1
+    assert ensemble['metrics']['n_forecasts'] == physics['metrics']['n_forecasts']
+    for fold in (0, 1):
+        model, config = load_model(out / 'runs' / 'hybrid' / f'fold{fold}' / 'ensemble' /
+                                   'model.safetensors')
+        assert len(model.members) == 2 and config['selection'] is not None
     tested = [r for f in result['folds'] for r in f['test']]
     assert sorted(tested) == sorted(read_dataset(toy).run_ids())
     assert result['protocol']['n_forecasts'] == physics['metrics']['n_forecasts']

@@ -9,6 +9,10 @@ very code training runs in torch. What this module adds is the execution: the
 initialization window and the horizon as ``jax.lax.scan``, compiled once per batch size
 with ``jax.jit``, batched over candidate control plans and sharded over the cores.
 
+An ensemble checkpoint (``hybrid_models.ensemble``: K corrections on one physics) is
+served by the same program: each step adds the mean of the members' bounded
+corrections (``hybrid_step.ensemble_step``); a single hybrid is its one-member case.
+
 The relative threshold is resolved once, here (meanings as in ``hybrid_models.bound``):
 None serves the checkpoint's own bound (the threshold it was trained or deployed with,
 ``model.relative_threshold`` in its config); 0 serves the physics alone; T > 0 bounds
@@ -36,7 +40,15 @@ import numpy as np
 from hybrid_models.bands import Bands, BandsError
 from hybrid_models.bound import half_width, is_constant, schedule_of, step_bounds
 from hybrid_models.checkpoint_format import CheckpointError, read_model_arrays, vessel_of
-from hybrid_models.hybrid_step import hybrid_step, lstm_layers, lstm_stack, step_weights
+from hybrid_models.hybrid_step import (
+    ENSEMBLE_KIND as ENSEMBLE,
+)
+from hybrid_models.hybrid_step import (
+    ensemble_step,
+    lstm_layers,
+    lstm_stack,
+    step_weights,
+)
 from hybrid_models.physical import PhysicalModel, build_physical
 from hybrid_models.physical.base import part
 from vessel_description import Vessel
@@ -108,6 +120,13 @@ def served_bands(config: dict, spec, relative_threshold) -> tuple[Bands | None, 
     return bands, f'bands at levels {list(bands.levels)} from {bands.origin}'
 
 
+def members_of(state: dict, model_config: dict) -> list[dict]:
+    """Return the state dict of each member: one for a hybrid, K for an ensemble."""
+    if model_config.get('kind') != ENSEMBLE:
+        return [state]
+    return [part(state, f'members.{k}') for k in range(int(model_config['members']))]
+
+
 class Forecaster:
     """
     Batched, compiled forecasts of a trained hybrid model.
@@ -127,20 +146,24 @@ class Forecaster:
             jax.config.update('jax_enable_x64', True)
         self.spec, self.physical, self.dtype = spec, physical, dtype
         self.model_id, self.config = model_id, dict(config or {})
-        self.bound_mode = model_config.get('bound_mode', 'tanh')
-        self.relative_threshold, self.bound = served_bound(state, model_config,
+        member_config = model_config.get('member', model_config)
+        first = members_of(state, model_config)[0]
+        self.bound_mode = member_config.get('bound_mode', 'tanh')
+        self.relative_threshold, self.bound = served_bound(first, model_config,
                                                            relative_threshold)
-        self._output_range = np.asarray(state['output_range'], np.float64)
+        self._output_range = np.asarray(first['output_range'], np.float64)
         self.bands, self.bands_note = served_bands(self.config, spec, self.relative_threshold)
-        layers = int(model_config['layers'])
+        layers = int(member_config['layers'])
 
         def cast(a):
             a = np.asarray(a)
             return a.astype(dtype) if np.issubdtype(a.dtype, np.floating) else a
 
-        arrays = {k: cast(v) for k, v in state.items()} | {'bound': cast(self.bound)}
-        self._params = {**step_weights(arrays, layers), 'init': lstm_layers(arrays, 'init',
-                                                                            layers)}
+        arrays = {k: cast(v) for k, v in state.items()}
+        self.members = len(members_of(arrays, model_config))
+        self._params = tuple({**step_weights(m | {'bound': cast(self.bound)}, layers),
+                              'init': lstm_layers(m, 'init', layers)}
+                             for m in members_of(arrays, model_config))
         # The physical model's learned values enter the program as constants: XLA folds
         # them into its feature products (measured: 5.9 -> 4.6 ms per 900-step forecast).
         self._physical_arrays = {k: cast(v) for k, v in physical.arrays().items()}
@@ -173,11 +196,15 @@ class Forecaster:
     @classmethod
     def _build(cls, spec, model_config: dict, state: dict, relative_threshold, dtype,
                model_id: str, config: dict | None) -> Forecaster:
-        if model_config.get('kind') != 'hybrid':
-            raise CheckpointError(f"the forecaster serves hybrid models, not kind "
-                                  f"{model_config.get('kind')!r}")
-        physical = build_physical(model_config['physical'], spec)
-        physical.load_arrays(part(state, 'physical'))
+        kind = model_config.get('kind')
+        if kind not in ('hybrid', ENSEMBLE):
+            raise CheckpointError(f'the forecaster serves hybrid models and ensembles of '
+                                  f'them, not kind {kind!r}')
+        # An ensemble's members share one physics: the first member's is served.
+        first = members_of(state, model_config)[0]
+        member_config = model_config['member'] if kind == ENSEMBLE else model_config
+        physical = build_physical(member_config['physical'], spec)
+        physical.load_arrays(part(first, 'physical'))
         return cls(spec, model_config, physical, state, relative_threshold, dtype, model_id,
                    config)
 
@@ -194,35 +221,41 @@ class Forecaster:
         return step_bounds(self.relative_threshold, self._output_range, self.spec.dt, horizon)
 
     # ------------------------------------------------------------------ the program
-    def _forecast(self, p, z_window, c_window, c_future):
+    def _forecast(self, members, z_window, c_window, c_future):
         jax = jax_module()
         jnp = jax.numpy
         batch = c_future.shape[0]
-        hidden = p['init'][0][1].shape[0]
-        zeros = tuple(jnp.zeros((1, hidden), self.dtype) for _ in p['init'])
-        norm = jnp.concatenate([(z_window - p['state_mean']) / p['state_std'],
-                                (c_window - p['control_mean']) / p['control_std']], axis=-1)
 
-        def init_step(recurrent, x):
-            return lstm_stack(x[None, :], recurrent, p['init'])[1], None
+        def start(p):
+            """One member's recurrent state after the window, for every plan."""
+            hidden = p['init'][0][1].shape[0]
+            zeros = tuple(jnp.zeros((1, hidden), self.dtype) for _ in p['init'])
+            norm = jnp.concatenate([(z_window - p['state_mean']) / p['state_std'],
+                                    (c_window - p['control_mean']) / p['control_std']],
+                                   axis=-1)
 
-        (hs, cs), _ = jax.lax.scan(init_step, (zeros, zeros), norm)
-        recurrent = (tuple(jnp.broadcast_to(h, (batch, hidden)) for h in hs),
-                     tuple(jnp.broadcast_to(c, (batch, hidden)) for c in cs))
+            def init_step(recurrent, x):
+                return lstm_stack(x[None, :], recurrent, p['init'])[1], None
+
+            (hs, cs), _ = jax.lax.scan(init_step, (zeros, zeros), norm)
+            return (tuple(jnp.broadcast_to(h, (batch, hidden)) for h in hs),
+                    tuple(jnp.broadcast_to(c, (batch, hidden)) for c in cs))
+
+        recurrents = tuple(start(p) for p in members)
         z0 = jnp.broadcast_to(z_window[-1], (batch, z_window.shape[-1]))
 
         def physical(z, c):
             return self.physical.step(z, c, self._physical_arrays, compiled_repeat)
 
         def step(carry, inputs):
-            (z, recurrent), (c_t, bound) = carry, inputs
-            z_next, z_phy, _, recurrent = hybrid_step(p, physical, z, c_t, recurrent,
-                                                      self.bound_mode, bound=bound)
-            return (z_next, recurrent), (z_next, z_phy)
+            (z, recurrents), (c_t, bound) = carry, inputs
+            z_next, z_phy, _, recurrents = ensemble_step(members, physical, z, c_t,
+                                                         recurrents, self.bound_mode, bound)
+            return (z_next, recurrents), (z_next, z_phy)
 
         # The horizon is a static shape: each step's bound is a constant of the program.
         bounds = self.step_bounds(c_future.shape[1]).astype(self.dtype)
-        _, (hybrid, physics) = jax.lax.scan(step, (z0, recurrent),
+        _, (hybrid, physics) = jax.lax.scan(step, (z0, recurrents),
                                             (jnp.swapaxes(c_future, 0, 1), bounds))
         return jnp.swapaxes(hybrid, 0, 1), jnp.swapaxes(physics, 0, 1)
 

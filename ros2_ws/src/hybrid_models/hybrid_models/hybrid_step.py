@@ -9,6 +9,10 @@ Torch training (``nets.HybridModel``, with autograd) and the compiled jax foreca
     res    = bound((y W_head + b_head) * residual_std)
     z_t+1  = z_phy + res
 
+An ensemble (``ensemble_step``) is K such corrections on one physics: every member's
+LSTM reads the same z_phy, and the step adds the mean of their bounded residuals, so
+the ensemble is still the physics plus a bounded amount.
+
 The LSTM cell is torch.nn.LSTM's (gate order i, f, g, o; b = b_ih + b_hh). Weights come
 from a torch state dict's names (``lstm.weight_ih_l0``, ``head.weight``, ...) through
 ``step_weights``, whatever the array type: torch parameters during training, numpy
@@ -23,6 +27,7 @@ from collections.abc import Callable, Mapping
 from hybrid_models.bound import apply_bound
 from vessel_physics.arrays import namespace
 
+ENSEMBLE_KIND = 'hybrid_ensemble'   # a checkpoint's model kind for K members on one physics
 NORMALIZATION = ('state_mean', 'state_std', 'control_mean', 'control_std', 'residual_std')
 
 
@@ -79,13 +84,37 @@ def hybrid_step(weights: Mapping, physical: Callable, z, c, recurrent: tuple,
     (training without the constraint), otherwise ``bound`` (this step's half-widths;
     default ``weights['bound']``) limits it.
     """
-    xp = namespace(z, c)
     z_phy = physical(z, c)
+    residual, recurrent = correction(weights, z_phy, c, recurrent, bound_mode, between, bound)
+    return z_phy + residual, z_phy, residual, recurrent
+
+
+def ensemble_step(members: tuple, physical: Callable, z, c, recurrents: tuple,
+                  bound_mode: str | None, bound=None):
+    """
+    One sample period of K hybrids on one physics: return (z_next, z_phy, residual, states).
+
+    ``members`` holds each member's ``step_weights``, ``recurrents`` each member's
+    recurrent state; the residual is the mean of the members' bounded residuals.
+    """
+    z_phy = physical(z, c)
+    residuals, states = [], []
+    for weights, recurrent in zip(members, recurrents, strict=True):
+        residual, recurrent = correction(weights, z_phy, c, recurrent, bound_mode, None, bound)
+        residuals.append(residual)
+        states.append(recurrent)
+    residual = sum(residuals[1:], residuals[0]) / len(residuals)
+    return z_phy + residual, z_phy, residual, tuple(states)
+
+
+def correction(weights: Mapping, z_phy, c, recurrent: tuple, bound_mode: str | None,
+               between: Callable | None = None, bound=None):
+    """Return one member's bounded residual (state units) and its new recurrent state."""
+    xp = namespace(z_phy, c)
     x = xp.concat([(c - weights['control_mean']) / weights['control_std'],
                    (z_phy - weights['state_mean']) / weights['state_std']], axis=-1)
     y, recurrent = lstm_stack(x, recurrent, weights['lstm'], between)
-    residual = bounded_residual(y, weights, bound_mode, bound)
-    return z_phy + residual, z_phy, residual, recurrent
+    return bounded_residual(y, weights, bound_mode, bound), recurrent
 
 
 def bounded_residual(y, weights: Mapping, bound_mode: str | None, bound=None):

@@ -7,12 +7,14 @@ import torch
 from torch import nn
 
 from hybrid_models.data import Windows
+from hybrid_models.ensemble import KIND as ENSEMBLE
+from hybrid_models.ensemble import EnsembleHybrid
 from hybrid_models.nets import HybridModel, LSTMBaseline, as_tensor, module_device
 from hybrid_models.physical import build_physical
 from hybrid_models.qlag import QLag
 from vessel_description import Vessel
 
-MODEL_KINDS = ('qlag', 'lstm', 'hybrid')
+MODEL_KINDS = ('qlag', 'lstm', 'hybrid', 'hybrid_ensemble')
 
 
 def build_model(cfg: dict, spec: Vessel) -> nn.Module:
@@ -30,6 +32,11 @@ def build_model(cfg: dict, spec: Vessel) -> nn.Module:
                             bool(cfg.get('bound_in_training', False)),
                             # Checkpoints older than the key were trained from torch's init.
                             cfg.get('correction_init', 'random'))
+        model.relative_threshold = cfg.get('relative_threshold')
+        return model
+    if kind == ENSEMBLE:
+        model = EnsembleHybrid([build_model(cfg['member'], spec)
+                                for _ in range(int(cfg['members']))])
         model.relative_threshold = cfg.get('relative_threshold')
         return model
     raise ValueError(f'unknown model kind {kind!r}; use one of {MODEL_KINDS}')

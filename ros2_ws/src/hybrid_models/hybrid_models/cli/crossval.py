@@ -13,8 +13,11 @@ recordings deals equal counts instead), and of the other recordings --val-fracti
 validate and the rest train, so every recording is forecast by models that never saw
 it. Every model is trained with every seed on every fold (resumable: a finished
 training is kept, a killed one continues), --jobs at a time. Test forecasts of all
-folds are pooled; a row is the mean ± standard deviation over the seeds. Every distinct
-physics of the hybrids gets a row, and each hybrid seed is checked against its own
+folds are pooled; a row is the mean ± standard deviation over the seeds. With two or
+more seeds, each hybrid's seeds of a fold are also served as one ensemble (the mean of
+their corrections, its threshold and bands chosen on the fold's validation runs; what
+`training.members` trains), compared in a row of its own. Every distinct physics of
+the hybrids gets a row, and each hybrid seed and ensemble is checked against its own
 physics at every reported horizon step.
 
 Writes into --out: report.md, table.md, results.json (every number, per seed and per
@@ -34,6 +37,7 @@ from hybrid_models.checkpoint import CheckpointError
 from hybrid_models.data import evaluation_protocol
 from hybrid_models.studies.crossval import (
     ModelPlan,
+    ensemble_plan,
     evaluate_plan,
     harm_lines,
     make_folds,
@@ -85,6 +89,11 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                         help='seed of the shuffle that deals recordings into folds (0)')
     parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
                         help='config override for every training (repeatable)')
+    parser.add_argument('--no-ensemble', dest='ensemble', action='store_false',
+                        help="skip each hybrid's ensemble of its seeds (by default, with 2 "
+                             "or more seeds, each fold's seeds are also served as one "
+                             "ensemble, chosen on the fold's validation runs, and compared "
+                             "as a row of its own)")
     parser.add_argument('--jobs', type=int, default=2, help='trainings at a time (2)')
     parser.add_argument('--threads', type=int, default=2, help='cores to use in total (2)')
     for name, what in (('window', 'initialization window'), ('horizon', 'forecast length'),
@@ -122,9 +131,11 @@ def run_plan(args, models: list[ModelPlan], folds, say) -> dict | None:
     if failed:
         print(f"{PROG}: error: {failed[0]['label']}: {failed[0]['status']}", file=sys.stderr)
         return None
+    ensembles = (ensemble_plan(models, folds, seeds, args.out, say)
+                 if args.ensemble and len(seeds) > 1 else [])
     say('forecasting the held-out runs')
     result = evaluate_plan(models, folds, seeds, args.out, args.window, args.horizon,
-                           args.stride)
+                           args.stride, ensembles)
     result['trainings'] = trainings
     return result
 

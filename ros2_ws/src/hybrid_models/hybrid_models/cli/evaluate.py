@@ -30,6 +30,7 @@ import torch
 from hybrid_models import report
 from hybrid_models.checkpoint import CheckpointError, load_model
 from hybrid_models.data import checked_vessel, dataset_hash, evaluation_protocol, load_runs
+from hybrid_models.ensemble import is_hybrid
 from hybrid_models.evaluation import (
     PhysicsOnly,
     evaluate_model,
@@ -40,7 +41,6 @@ from hybrid_models.evaluation import (
     test_windows,
     threshold_sweep,
 )
-from hybrid_models.nets import HybridModel
 from hybrid_models.selection import harms
 from hybrid_models.training.train import MODEL_FILE
 from vessel_datasets.format import DatasetError
@@ -111,7 +111,7 @@ def main(argv=None) -> int:
         print(f'{label:>16s}: trajectory {report.trajectory_cell(row["metrics"]["trajectory"])}'
               f' m' + (f' (mean of {row["seeds"]} seeds)' if row.get('seeds', 1) > 1 else ''),
               file=sys.stderr)
-        if args.physics_only and isinstance(members[0][0], HybridModel):
+        if args.physics_only and is_hybrid(members[0][0]):
             # Each seed against its own physics (seeds on other data fit other physics).
             known = len(physics_rows)
             own = [physics_rows[_physics_row(m, label, windows, spec, physics_rows)]
@@ -131,7 +131,7 @@ def main(argv=None) -> int:
                            'n_forecasts': len(windows)},
               'rows': rows}
     if args.sweep:
-        if args.sweep not in models or not isinstance(models[args.sweep][0], HybridModel):
+        if args.sweep not in models or not is_hybrid(models[args.sweep][0]):
             print(f'evaluate.py: error: --sweep {args.sweep!r} is not a hybrid label',
                   file=sys.stderr)
             return 2
@@ -179,7 +179,7 @@ def _model_row(label: str, members: list, windows, spec, horizon: int):
              'best_epoch': cfg.get('best_epoch'), 'stop_reason': cfg.get('stop_reason'),
              'val': cfg.get('val'), 'model': cfg.get('model'),
              'parameters': cfg.get('parameters')}
-    if isinstance(model, HybridModel):
+    if is_hybrid(model):
         extra['bound'] = cfg.get('bound')
         extra['residual'] = residual_share(model, windows)
         extra['served_thresholds'] = [c['model'].get('relative_threshold') for _, c in members]

@@ -1,6 +1,8 @@
 r"""
 Write the relative threshold a hybrid checkpoint is served with into the checkpoint.
 
+A hybrid's or an ensemble's (``hybrid_models.ensemble``: one threshold for every member).
+
     set_threshold MODEL.safetensors 0.15              # in place
     set_threshold MODEL.safetensors none --out B.safetensors
 
@@ -17,14 +19,15 @@ import sys
 
 from hybrid_models.checkpoint import CheckpointError, load_model, save_checkpoint
 from hybrid_models.cli.arguments import threshold
+from hybrid_models.ensemble import is_hybrid
 
 
 def set_threshold(path: Path, relative_threshold: float | None, out: Path) -> dict:
     """Rewrite ``path`` to ``out`` with the threshold; return its bound section."""
     model, config = load_model(path)
-    if getattr(model, 'kind', None) != 'hybrid':
-        raise CheckpointError(f'{path}: only hybrid models have a bound (this is '
-                              f'{getattr(model, "kind", type(model).__name__)!r})')
+    if not is_hybrid(model):
+        raise CheckpointError(f'{path}: only hybrid models (and ensembles of them) have a '
+                              f'bound (this is {getattr(model, "kind", type(model).__name__)!r})')
     model.set_threshold(relative_threshold)
     bound = {**config.get('bound', {}), 'relative_threshold': relative_threshold,
              'half_width': model.bound.tolist()}

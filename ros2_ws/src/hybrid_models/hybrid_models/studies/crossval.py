@@ -8,11 +8,14 @@ recording stay together), a share of the others validates and the rest trains; w
 (``vessel_datasets.format.resplit``): nothing is copied.
 
 ``train_plan`` trains every (model, fold, seed) as a resumable subprocess
-(``training.jobs``), a few at a time. ``evaluate_plan`` forecasts each fold's test runs
-with that fold's models and pools the folds, so every figure is over all held-out runs;
-a model's row is the mean ± sd over its seeds (``evaluation.seed_row``), every distinct
-physics of the hybrids gets a row of its own, and each hybrid seed is checked against
-its own physics at every reported horizon step (``selection.harms``).
+(``training.jobs``), a few at a time. ``ensemble_plan`` packs each hybrid's seeds of a
+fold into the ensemble a user would serve (``training.ensemble``: its threshold and
+bands chosen on the fold's validation runs). ``evaluate_plan`` forecasts each fold's
+test runs with that fold's models and pools the folds, so every figure is over all
+held-out runs; a model's row is the mean ± sd over its seeds (``evaluation.seed_row``),
+an ensemble's row follows its model's, every distinct physics of the hybrids gets a row
+of its own, and each hybrid seed and ensemble is checked against its own physics at
+every reported horizon step (``selection.harms``).
 """
 
 from __future__ import annotations
@@ -31,16 +34,18 @@ from hybrid_models import report
 from hybrid_models.checkpoint import load_model
 from hybrid_models.cross_bands import HeldOut
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
+from hybrid_models.ensemble import is_hybrid
 from hybrid_models.evaluation import PhysicsOnly, physics_identity, physics_label, seed_row
 from hybrid_models.metrics import StepErrors, forecast_metrics
 from hybrid_models.models import predict
-from hybrid_models.nets import HybridModel
 from hybrid_models.selection import harms
+from hybrid_models.training.ensemble import serve_ensemble
 from hybrid_models.training.jobs import train_job
 from hybrid_models.training.train import MODEL_FILE
 from vessel_datasets.format import Dataset, read_dataset, resplit
 
 RESULTS_FILE = 'results.json'
+ENSEMBLE = 'ensemble'   # the key of a model's ensemble beside its seeds' numbers
 
 
 @dataclass(frozen=True)
@@ -187,6 +192,40 @@ def run_dir(out: Path, label: str, fold: Fold, seed: int) -> Path:
     return Path(out) / 'runs' / folder / f'fold{fold.index}' / f'seed{seed}'
 
 
+def ensemble_path(out: Path, label: str, fold: Fold) -> Path:
+    """Return where the ensemble of a model's seeds on ``fold`` is written."""
+    return run_dir(out, label, fold, 0).parent / ENSEMBLE / MODEL_FILE
+
+
+def ensemble_label(label: str, seeds: Sequence[int]) -> str:
+    """Return the table label of a model's ensemble of ``seeds``."""
+    return f'{label}, ensemble of {len(seeds)} seeds'
+
+
+def ensemble_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
+                  out: Path, say: Callable[[str], None] = lambda m: print(m, file=sys.stderr)
+                  ) -> list[str]:
+    """
+    Pack every hybrid's seeds of each fold into its ensemble; return the models packed.
+
+    A finished ensemble is kept (a second call resumes); models that are not hybrids
+    have none.
+    """
+    packed = []
+    for m in models:
+        if not is_hybrid(load_model(run_dir(out, m.label, folds[0], seeds[0]) / MODEL_FILE)[0]):
+            continue
+        for f in folds:
+            target = ensemble_path(out, m.label, f)
+            if not target.is_file():
+                target.parent.mkdir(parents=True, exist_ok=True)
+                serve_ensemble([run_dir(out, m.label, f, s) / MODEL_FILE for s in seeds],
+                               f.path, target)
+            say(f'ensemble of {len(seeds)} seeds: {m.label}/fold{f.index}')
+        packed.append(m.label)
+    return packed
+
+
 def read_study(out: Path) -> tuple[list[Fold], dict]:
     """
     Return the folds of the finished study in ``out`` and its results (results.json).
@@ -234,13 +273,13 @@ def train_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequen
 
 def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
                   out: Path, window: int | None = None, horizon: int | None = None,
-                  stride: int | None = None) -> dict:
+                  stride: int | None = None, ensembles: Sequence[str] = ()) -> dict:
     """
     Forecast every fold's test runs with its models; pool the folds; return the results.
 
-    The result holds the table rows (models, then one per distinct physics), the mean
-    position error at every horizon step per model and seed (for the figure), the
-    protocol and the folds.
+    The result holds the table rows (models, each followed by its ensemble when
+    ``ensembles`` names it, then one per distinct physics), the mean position error at
+    every horizon step per model and seed (for the figure), the protocol and the folds.
     """
     spec = read_dataset(folds[0].path).vessel
     window, horizon, stride = evaluation_protocol(spec, window, horizon, stride)
@@ -253,10 +292,13 @@ def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
         targets.append(windows.z_target)
         n_forecasts += len(windows)
         for m in models:
-            for s in seeds:
-                model, _ = load_model(run_dir(out, m.label, fold, s) / MODEL_FILE)
+            paths = {s: run_dir(out, m.label, fold, s) / MODEL_FILE for s in seeds}
+            if m.label in ensembles:
+                paths[ENSEMBLE] = ensemble_path(out, m.label, fold)
+            for s, path in paths.items():
+                model, _ = load_model(path)
                 preds.setdefault((m.label, s), []).append(predict(model, windows))
-                if isinstance(model, HybridModel):
+                if is_hybrid(model):
                     fp, name = physics_identity(model.physical)
                     physics.setdefault((m.label, s), []).append(
                         (fp, name, lambda w=windows, p=model.physical: predict(PhysicsOnly(p),
@@ -281,6 +323,17 @@ def evaluate_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
             row['harms_vs_physics'] = [harms(mm['profile'], p['metrics']['profile'])
                                        for mm, p in zip(metrics, own, strict=True)]
         rows.append(row)
+        if m.label in ensembles:
+            pred = np.concatenate(preds[(m.label, ENSEMBLE)])
+            label = ensemble_label(m.label, seeds)
+            own = _physics_pooled(physics[(m.label, ENSEMBLE)], m.label, true, spec,
+                                  physics_rows, curves, scale)
+            metrics = forecast_metrics(pred, true, spec, state_std=scale)
+            curves[label] = [_position_curve(pred, true, spec)]
+            rows.append({'label': label, 'metrics': metrics, 'ensemble_of': m.label,
+                         'physics': [own['label']],
+                         'harms_vs_physics': [harms(metrics['profile'],
+                                                    own['metrics']['profile'])]})
     rows += list(physics_rows.values())
     return {'protocol': {'window': window, 'horizon': horizon, 'stride': stride,
                          'target': 'true', 'n_forecasts': n_forecasts,
@@ -321,7 +374,7 @@ def out_of_fold_forecasts(out: Path, label: str, spec, relative_threshold, windo
         preds = []
         for s in seeds:
             model, _ = load_model(run_dir(out, label, fold, s) / MODEL_FILE)
-            if not isinstance(model, HybridModel):
+            if not is_hybrid(model):
                 raise ValueError(f'{label!r} of {out} is a {type(model).__name__}, not a '
                                  f'hybrid: only a hybrid is served at a threshold')
             with model.served_at(relative_threshold):
@@ -370,8 +423,13 @@ def harm_lines(rows: list[dict]) -> list[str]:
         if 'harms_vs_physics' not in row:
             continue
         worse = [h for h in row['harms_vs_physics'] if h]
-        verdict = ('not worse than its physics at any reported step in any seed' if not worse
-                   else f'worse than its physics in {len(worse)} of '
-                        f'{len(row["harms_vs_physics"])} seeds ({"; ".join(worse[0][:3])} ...)')
+        if row.get('ensemble_of'):
+            verdict = ('not worse than its physics at any reported step' if not worse else
+                       f'worse than its physics ({"; ".join(worse[0][:3])} ...)')
+        else:
+            verdict = ('not worse than its physics at any reported step in any seed'
+                       if not worse else
+                       f'worse than its physics in {len(worse)} of '
+                       f'{len(row["harms_vs_physics"])} seeds ({"; ".join(worse[0][:3])} ...)')
         lines.append(f'- {row["label"]} ({", ".join(row["physics"])}): {verdict}')
     return lines

@@ -49,6 +49,9 @@ DEFAULTS: dict = {
     },
     'training': {
         'seed': 0,
+        # More than 1: an ensemble of that many hybrids (seeds seed, seed + 1, ...) served
+        # as one (hybrid_models.ensemble): the mean of their corrections at every step.
+        'members': 1,
         'threads': 2,
         'window': None,         # initialization window (samples); None: the vessel's
         'sequence_length': 50,  # predicted samples per training sequence (BPTT length)
@@ -140,6 +143,9 @@ def resolve(cfg: dict) -> dict:
     if out['model']['residual_scale'] not in RESIDUAL_SCALES:
         raise ConfigError(f"model.residual_scale must be one of {RESIDUAL_SCALES}, got "
                           f"{out['model']['residual_scale']!r}")
+    members = out['training']['members']
+    if isinstance(members, bool) or not isinstance(members, int) or members < 1:
+        raise ConfigError(f'training.members must be a whole number >= 1, got {members!r}')
     kind = out['model']['kind']
     if kind == 'lstm' and any(p['kind'] == 'teacher' for p in out['training']['phases']):
         raise ConfigError('the LSTM baseline has no physical model to teacher-force; '

@@ -110,6 +110,11 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'a
     """
     if cfg['dataset'] is None:
         raise ValueError('the config names no dataset (key "dataset" or --dataset)')
+    if cfg['training']['members'] > 1:
+        # The ensemble trains its members with this very function: imported here.
+        from hybrid_models.training.ensemble import train_ensemble
+
+        return train_ensemble(cfg, Path(out_dir), resume, device)
     # Everything that can refuse the dataset runs before anything is written.
     ds = read_dataset(cfg['dataset'])
     spec = dataset_vessel(cfg, ds)

@@ -1,0 +1,159 @@
+"""
+Several trained corrections on one physics, served as one hybrid.
+
+A correction learnt from a few runs depends on its seed as much as on the data: five
+seeds of the same config gave trajectory errors 31-56 m where the physics alone gave 48
+m (issue #23, a KVLCC2 campaign at full scale). An ensemble of K hybrids of one config,
+trained with K seeds on the same data, forecasts with the mean of their corrections at
+every step (``hybrid_step.ensemble_step``): one trajectory, the physics plus the
+members' mean bounded residual, so the interpretability bound holds as for one hybrid.
+The members keep their own LSTM, head and normalization; the physics is the first
+member's (``pack`` refuses members whose physics differ), and one relative threshold
+serves them all.
+
+``pack(members)`` builds an ``EnsembleHybrid`` from trained ``HybridModel``s;
+``is_hybrid`` tells whether a model is served at a threshold (one hybrid or an ensemble).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from contextlib import contextmanager
+
+import torch
+from torch import nn
+
+from hybrid_models.hybrid_step import ENSEMBLE_KIND, ensemble_step
+from hybrid_models.nets import HybridModel
+
+KIND = ENSEMBLE_KIND
+
+
+class EnsembleError(ValueError):
+    """Members that cannot be served together; the message is one line."""
+
+
+class EnsembleHybrid(nn.Module):
+    """K hybrids of one config on one physics; each step adds their mean correction."""
+
+    kind = KIND
+
+    def __init__(self, members: Sequence[HybridModel]):
+        super().__init__()
+        if len(members) < 2:
+            raise EnsembleError(f'an ensemble needs at least 2 members, got {len(members)}')
+        self.members = nn.ModuleList(members)
+        self.spec = members[0].spec
+
+    # ------------------------------------------------- what a single hybrid offers too
+    @property
+    def physical(self):
+        """The physics every member corrects (the first member's module)."""
+        return self.members[0].physical
+
+    @property
+    def relative_threshold(self):
+        """The threshold (or schedule) every member is served at."""
+        return self.members[0].relative_threshold
+
+    @relative_threshold.setter
+    def relative_threshold(self, value) -> None:
+        for member in self.members:
+            member.relative_threshold = value
+
+    @property
+    def bound(self) -> torch.Tensor:
+        """Half-widths of the served threshold (equal for all members: one physics)."""
+        return self.members[0].bound
+
+    @property
+    def output_range(self) -> torch.Tensor:
+        """The physics' 95 % one-step output range the threshold is relative to."""
+        return self.members[0].output_range
+
+    def set_threshold(self, relative_threshold) -> None:
+        """Serve every member at ``relative_threshold`` (``HybridModel.set_threshold``)."""
+        for member in self.members:
+            member.set_threshold(relative_threshold)
+
+    @contextmanager
+    def served_at(self, relative_threshold):
+        """Serve at another threshold inside the ``with`` block; the own one after it."""
+        own = self.relative_threshold
+        self.set_threshold(relative_threshold)
+        try:
+            yield self
+        finally:
+            self.set_threshold(own)
+
+    def step_bounds(self, horizon: int) -> torch.Tensor | None:
+        """Half-widths (horizon, n_state) of the served threshold; None when constant."""
+        return self.members[0].step_bounds(horizon)
+
+    def forecast(self, z_window: torch.Tensor, c_window: torch.Tensor,
+                 c_future: torch.Tensor, return_parts: bool = False):
+        """Multistep prediction with feedback; ``return_parts`` adds (z_phy, residual)."""
+        recurrents = tuple(m.start(z_window, c_window) for m in self.members)
+        weights = tuple(m.step_weights() for m in self.members)
+        bounds = self.step_bounds(c_future.shape[1])
+        mode = self.members[0]._bound_mode()
+        z = z_window[:, -1]
+        zs, phys, ress = [], [], []
+        for k in range(c_future.shape[1]):
+            z, z_phy, res, recurrents = ensemble_step(
+                weights, self.physical, z, c_future[:, k], recurrents, mode,
+                None if bounds is None else bounds[k])
+            zs.append(z)
+            phys.append(z_phy)
+            ress.append(res)
+        out = torch.stack(zs, dim=1)
+        if return_parts:
+            return out, torch.stack(phys, dim=1), torch.stack(ress, dim=1)
+        return out
+
+    def describe(self) -> dict:
+        """Architecture (``build_model`` input): the member's description and the count."""
+        return {'kind': KIND, 'members': len(self.members),
+                'member': self.members[0].describe(),
+                'relative_threshold': self.relative_threshold}
+
+
+def pack(members: Sequence[HybridModel]) -> EnsembleHybrid:
+    """
+    Return the ensemble of trained hybrids, checked to be servable together.
+
+    Refused in one line: fewer than two, a model that is not a hybrid, members of
+    another vessel or rate, another architecture, or another physics (its fingerprint:
+    description and every learned value).
+    """
+    # evaluation imports models, which builds ensembles: imported here, not at the top.
+    from hybrid_models.evaluation import physics_identity
+
+    members = list(members)
+    for i, m in enumerate(members):
+        if not isinstance(m, HybridModel):
+            raise EnsembleError(f'member {i} is a {type(m).__name__}, not a hybrid: only '
+                                f'hybrids on one physics form an ensemble')
+    if len(members) < 2:
+        raise EnsembleError(f'an ensemble needs at least 2 members, got {len(members)}')
+    first = members[0]
+    physics = physics_identity(first.physical)
+    for i, m in enumerate(members[1:], start=1):
+        m.spec.check_compatible(first.spec, f'member 0 of the ensemble (member {i})')
+        arch = ({k: v for k, v in m.describe().items() if k != 'relative_threshold'},
+                {k: v for k, v in first.describe().items() if k != 'relative_threshold'})
+        if arch[0] != arch[1]:
+            raise EnsembleError(f'member {i} has another architecture than member 0: '
+                                f'{arch[0]} against {arch[1]}')
+        if physics_identity(m.physical) != physics:
+            raise EnsembleError(f'member {i} corrects another physics ('
+                                f'{physics_identity(m.physical)[1]}) than member 0 '
+                                f'({physics[1]}): an ensemble shares one physics')
+    ensemble = EnsembleHybrid(members)
+    ensemble.set_threshold(first.relative_threshold)
+    return ensemble
+
+
+def is_hybrid(model: nn.Module) -> bool:
+    """Tell whether a model is a hybrid served at a threshold (one, or an ensemble)."""
+    return isinstance(model, (HybridModel, EnsembleHybrid))
