@@ -22,7 +22,7 @@ SHORT = ['training.progress=false', 'training.phases=[{kind: teacher, max_epochs
 
 
 def hybrid(seed: int, physical=None):
-    """A small untrained hybrid of the toy vessel whose head is set from ``seed``."""
+    """Return a small untrained hybrid of the toy vessel, its head set from ``seed``."""
     torch.manual_seed(seed)
     model = build_model({'kind': 'hybrid', 'hidden': 8, 'layers': 1, 'dropout': 0.0,
                          'physical': physical or {'kind': 'lin'},
@@ -74,7 +74,7 @@ def test_members_that_cannot_be_served_together_are_refused_in_one_line():
 
 @pytest.fixture(scope='module')
 def trained(tmp_path_factory):
-    """An ensemble of 2 tiny hybrids trained by train() with training.members: 2."""
+    """Train an ensemble of 2 tiny hybrids with training.members: 2; return where."""
     root = tmp_path_factory.mktemp('ensemble')
     toy = write_toy_dataset(root / 'toy', n_runs=6, n_samples=260)
     cfg = load_config(SMOKE, SHORT + [f'dataset={toy}', 'training.members=2'])

@@ -48,12 +48,12 @@ class EnsembleHybrid(nn.Module):
     # ------------------------------------------------- what a single hybrid offers too
     @property
     def physical(self):
-        """The physics every member corrects (the first member's module)."""
+        """Return the physics every member corrects (the first member's module)."""
         return self.members[0].physical
 
     @property
     def relative_threshold(self):
-        """The threshold (or schedule) every member is served at."""
+        """Return the threshold (or schedule) every member is served at."""
         return self.members[0].relative_threshold
 
     @relative_threshold.setter
@@ -63,12 +63,12 @@ class EnsembleHybrid(nn.Module):
 
     @property
     def bound(self) -> torch.Tensor:
-        """Half-widths of the served threshold (equal for all members: one physics)."""
+        """Return the served half-widths (equal for all members: one physics)."""
         return self.members[0].bound
 
     @property
     def output_range(self) -> torch.Tensor:
-        """The physics' 95 % one-step output range the threshold is relative to."""
+        """Return the physics' 95 % one-step output range the threshold is relative to."""
         return self.members[0].output_range
 
     def set_threshold(self, relative_threshold) -> None:
