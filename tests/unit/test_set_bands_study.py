@@ -27,7 +27,7 @@ def study(tmp_path_factory):
     out = root / 'cv'
     args = ['--dataset', str(toy), '--out', str(out), '--seeds', '2', '--folds', '3',
             '--model', f'{LABEL}={SMOKE}', '--horizon', '100', '--window', '20',
-            '--threads', '1', '--jobs', '1']
+            '--threads', '1', '--jobs', '1', '--no-ensemble']
     assert crossval.main(args + sum((['--set', s] for s in SHORT), [])) == 0
     return out, toy
 
