@@ -19,6 +19,7 @@ PROGRAMS = {
     'set_bands': 'hybrid_models',
     'model_card': 'hybrid_models',
     'crossval': 'hybrid_models',
+    'ensemble': 'hybrid_models',
     'simulate': 'vessel_datasets',
     'bag_to_dataset': 'vessel_datasets',
     'table_to_dataset': 'vessel_datasets',

@@ -110,3 +110,19 @@ def test_an_ensemble_is_chosen_on_the_dataset_its_members_were_trained_on(traine
     members = [root / 'out' / 'members' / f'member{i}' / 'model.safetensors' for i in (0, 1)]
     with pytest.raises(EnsembleError, match='is not the dataset the members were trained on'):
         serve_ensemble(members, other, tmp_path / 'ensemble.safetensors')
+
+
+def test_the_ensemble_program_packs_checkpoints_and_refuses_one_member(trained, tmp_path,
+                                                                        capsys):
+    from hybrid_models.cli.ensemble import main
+
+    root, toy, _ = trained
+    members = [str(root / 'out' / 'members' / f'member{i}' / 'model.safetensors')
+               for i in (0, 1)]
+    out = tmp_path / 'e.safetensors'
+    assert main(members + ['--dataset', str(toy), '--out', str(out)]) == 0
+    assert '2 members, relative threshold' in capsys.readouterr().out
+    assert isinstance(load_model(out)[0], EnsembleHybrid)
+    assert main(members[:1] + ['--dataset', str(toy), '--out', str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == 'ensemble: error: an ensemble needs at least 2 members, got 1'

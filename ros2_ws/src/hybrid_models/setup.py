@@ -29,5 +29,6 @@ setup(
         'compare_physics = hybrid_models.cli.compare_physics:main',
         'model_card = hybrid_models.cli.model_card:main',
         'crossval = hybrid_models.cli.crossval:main',
+        'ensemble = hybrid_models.cli.ensemble:main',
     ]},
 )
