@@ -255,11 +255,17 @@ def study_models(result: dict) -> list[str]:
 def train_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
                out: Path, jobs: int = 2, threads: int = 2,
                say: Callable[[str], None] = lambda m: print(m, file=sys.stderr)) -> list[dict]:
-    """Train every (model, fold, seed), ``jobs`` at a time; return the trainings' summaries."""
+    """
+    Train every (model, fold, seed), ``jobs`` at a time; return the trainings' summaries.
+
+    Each seed trains one model whatever the config's ``training.members``: a study's seeds
+    are the members of the ensemble it packs (``ensemble_plan``).
+    """
     per_job = max(1, threads // max(jobs, 1))
     plan = [(f'{m.label}/fold{f.index}/seed{s}', m.config,
              m.overrides_for(f) + [f'dataset={f.path.resolve()}', f'training.seed={s}',
-                                   f'training.threads={per_job}'], run_dir(out, m.label, f, s))
+                                   f'training.threads={per_job}', 'training.members=1'],
+             run_dir(out, m.label, f, s))
             for f in folds for m in models for s in seeds]
     results = []
     with ThreadPoolExecutor(max(jobs, 1)) as pool:
