@@ -47,15 +47,15 @@ def test_a_forecast_worse_in_position_or_state_error_at_a_reported_step_harms():
 
 
 def fake_validation(errors_by_threshold):
-    """evaluate(schedule): each quarter's errors come from the threshold serving it."""
-    def evaluate(schedule):
+    """evaluate(schedules): each quarter's errors come from the threshold serving it."""
+    def evaluate_one(schedule):
         starts = [start for start, _ in schedule] + [float('inf')]
         served = [next(t for (_, t), e in zip(schedule, starts[1:], strict=True) if q < e)
                   for q in range(2)]
         position = [errors_by_threshold[t][0][q] for q, t in enumerate(served)]
         normalized = [errors_by_threshold[t][1][q] for q, t in enumerate(served)]
         return {'score': sum(normalized), 'profile': profile(position, normalized)}
-    return evaluate
+    return lambda schedules: [evaluate_one(schedule) for schedule in schedules]
 
 
 def test_the_best_admissible_threshold_is_served_and_the_physics_when_none_helps():
@@ -160,6 +160,29 @@ def test_a_correction_that_helps_on_validation_is_served_bounded(linear):
     assert chosen['relative_threshold'] > 0, chosen['reason']
     assert chosen['score'] < 0.5 * chosen['physics']['score']
     assert model.relative_threshold == chosen['relative_threshold']
+
+
+def test_forecasts_at_several_thresholds_in_one_batch_are_each_thresholds_own(linear):
+    cfg = load_config(SMOKE, [f'dataset={linear}'])
+    model = _fitted_hybrid(linear, cfg)
+    with torch.no_grad():
+        model.head.bias.copy_(torch.tensor([0.3, -0.2, 0.1, 0.0, 0.05]))
+    runs = load_runs(linear, 'val', TOY_VESSEL)
+    task = RecurrentTask(TOY_VESSEL, runs, runs, cfg['training'], np.ones(5))
+    # The physics alone, a bound that binds, none, and the physics first then a bound.
+    schedules = [0.0, 0.05, None, [(0.0, 0.0), (3 * TOY_VESSEL.dt, 0.5)]]
+    batched = task.validation_forecasts_at(model, schedules)
+    assert len(batched) == len(schedules)
+    for schedule, (pred, true, runs_of) in zip(schedules, batched, strict=True):
+        with model.served_at(schedule):
+            alone, alone_true, alone_runs = task.validation_forecasts(model)
+        np.testing.assert_allclose(pred, alone, rtol=1e-5, atol=1e-6)
+        np.testing.assert_array_equal(true, alone_true)
+        np.testing.assert_array_equal(runs_of, alone_runs)
+    # The thresholds did give different forecasts: the copies kept their own bounds.
+    assert not np.allclose(batched[0][0], batched[1][0])
+    assert not np.allclose(batched[1][0], batched[2][0])
+    np.testing.assert_allclose(batched[3][0][:, :3], batched[0][0][:, :3], rtol=1e-5)
 
 
 def test_a_difference_the_validation_runs_cannot_resolve_is_not_harm():

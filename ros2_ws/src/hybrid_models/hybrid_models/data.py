@@ -66,6 +66,11 @@ class Windows:
         """Rows ``idx`` of every field."""
         return Windows(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
 
+    def tiled(self, times: int) -> Windows:
+        """Every row ``times`` over, block after block (rows of block j: j B .. (j + 1) B)."""
+        return Windows(*(np.concatenate([getattr(self, f)] * times)
+                         for f in self.__dataclass_fields__))
+
 
 def load_runs(dataset: Dataset | str | Path, split: str, spec: Vessel) -> list[RunArrays]:
     """Load every run of ``split`` as float32 arrays in the vehicle's vector order."""

@@ -90,12 +90,18 @@ class EnsembleHybrid(nn.Module):
         """Half-widths (horizon, n_state) of the served threshold; None when constant."""
         return self.members[0].step_bounds(horizon)
 
+    def bounds_at(self, relative_threshold, horizon: int) -> torch.Tensor:
+        """Half-widths (horizon, n_state) of any threshold or schedule (inf: unbounded)."""
+        return self.members[0].bounds_at(relative_threshold, horizon)
+
     def forecast(self, z_window: torch.Tensor, c_window: torch.Tensor,
-                 c_future: torch.Tensor, return_parts: bool = False):
-        """Multistep prediction with feedback; ``return_parts`` adds (z_phy, residual)."""
+                 c_future: torch.Tensor, return_parts: bool = False,
+                 bounds: torch.Tensor | None = None):
+        """Multistep prediction with feedback, as ``HybridModel.forecast`` (``bounds`` too)."""
         recurrents = tuple(m.start(z_window, c_window) for m in self.members)
         weights = tuple(m.step_weights() for m in self.members)
-        bounds = self.step_bounds(c_future.shape[1])
+        if bounds is None:
+            bounds = self.step_bounds(c_future.shape[1])
         mode = self.members[0]._bound_mode()
         z = z_window[:, -1]
         zs, phys, ress = [], [], []

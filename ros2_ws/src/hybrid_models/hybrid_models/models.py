@@ -43,8 +43,14 @@ def build_model(cfg: dict, spec: Vessel) -> nn.Module:
 
 
 @torch.no_grad()
-def predict(model: nn.Module, windows: Windows, batch_size: int = 1024) -> np.ndarray:
-    """Forecasts (B, H, n_state) for every window, in evaluation mode."""
+def predict(model: nn.Module, windows: Windows, batch_size: int = 1024,
+            bounds: torch.Tensor | None = None) -> np.ndarray:
+    """
+    Forecasts (B, H, n_state) for every window, in evaluation mode.
+
+    ``bounds`` (H, B, n_state): a hybrid's half-widths per step and window instead of
+    its served threshold's (``HybridModel.forecast``).
+    """
     was_training = model.training
     model.eval()
     out = []
@@ -52,9 +58,10 @@ def predict(model: nn.Module, windows: Windows, batch_size: int = 1024) -> np.nd
     try:
         for i in range(0, len(windows), batch_size):
             w = windows.subset(slice(i, i + batch_size))
+            rows = {} if bounds is None else {'bounds': bounds[:, i:i + batch_size]}
             out.append(model.forecast(as_tensor(w.z_window, device),
                                       as_tensor(w.c_window, device),
-                                      as_tensor(w.c_future, device)).cpu().numpy())
+                                      as_tensor(w.c_future, device), **rows).cpu().numpy())
     finally:
         model.train(was_training)
     return np.concatenate(out)

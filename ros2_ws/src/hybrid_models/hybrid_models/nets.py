@@ -218,7 +218,11 @@ class HybridModel(_Normalized):
         """Half-widths (horizon, n_state) of the served threshold; None when constant."""
         if is_constant(self.relative_threshold):
             return None
-        b = step_bounds(self.relative_threshold, self.output_range.double().numpy(),
+        return self.bounds_at(self.relative_threshold, horizon)
+
+    def bounds_at(self, relative_threshold, horizon: int) -> torch.Tensor:
+        """Half-widths (horizon, n_state) of any threshold or schedule (inf: unbounded)."""
+        b = step_bounds(relative_threshold, self.output_range.double().numpy(),
                         self.spec.dt, horizon)
         return torch.as_tensor(b, dtype=self.bound.dtype, device=self.bound.device)
 
@@ -260,11 +264,19 @@ class HybridModel(_Normalized):
         return lambda x: nn.functional.dropout(x, self.lstm.dropout, training=True)
 
     def forecast(self, z_window: torch.Tensor, c_window: torch.Tensor,
-                 c_future: torch.Tensor, return_parts: bool = False):
-        """Multistep prediction with feedback; ``return_parts`` adds (z_phy, residual)."""
+                 c_future: torch.Tensor, return_parts: bool = False,
+                 bounds: torch.Tensor | None = None):
+        """
+        Multistep prediction with feedback; ``return_parts`` adds (z_phy, residual).
+
+        ``bounds``: half-widths per step (H, n_state) or per step and row (H, B, n_state)
+        instead of the served threshold's (``bounds_at``), e.g. to forecast the same
+        windows at several thresholds in one batch.
+        """
         recurrent = self.start(z_window, c_window)
         weights = self.step_weights()
-        bounds = self.step_bounds(c_future.shape[1])
+        if bounds is None:
+            bounds = self.step_bounds(c_future.shape[1])
         z = z_window[:, -1]
         zs, phys, ress = [], [], []
         for k in range(c_future.shape[1]):

@@ -115,13 +115,14 @@ def _resolved(differences: np.ndarray, runs: np.ndarray, z: float) -> bool:
     return bool(per_run.mean() > z * per_run.std(ddof=1) / np.sqrt(len(per_run)))
 
 
-def choose_schedule(evaluate: Callable[[list], dict], grid: list, physics: dict,
+def choose_schedule(evaluate: Callable[[list], list], grid: list, physics: dict,
                     dt: float, confidence: float | None = None) -> dict:
     """
     Pick the served threshold (module docstring); return the choice.
 
-    ``evaluate(schedule)`` forecasts the validation runs served at a schedule and returns
-    ``forecast_figures``; ``physics`` is that of the physics alone. Returns
+    ``evaluate(schedules)`` forecasts the validation runs served at each schedule of a
+    list and returns their ``forecast_figures``, in order; ``physics`` is that of the
+    physics alone. Returns
     {'relative_threshold' (a number, or a schedule for a later start), 'score', 'reason',
     'candidates'} where every candidate row has its schedule and ``harms``.
     """
@@ -129,10 +130,13 @@ def choose_schedule(evaluate: Callable[[list], dict], grid: list, physics: dict,
     rows: list[dict] = []
     for start in [0.0] + [k * dt for k in steps[:-1]]:
         tried = []
-        for t in (t for t in grid if t != PHYSICS_ALONE):
-            schedule = [(0.0, t)] if start == 0.0 else [(0.0, PHYSICS_ALONE), (start, t)]
+        thresholds = [t for t in grid if t != PHYSICS_ALONE]
+        schedules = [[(0.0, t)] if start == 0.0 else [(0.0, PHYSICS_ALONE), (start, t)]
+                     for t in thresholds]
+        for t, schedule, figures in zip(thresholds, schedules, evaluate(schedules),
+                                        strict=True):
             row = {'from_s': start, 'relative_threshold': t, 'schedule': schedule,
-                   **evaluate(schedule)}
+                   **figures}
             paired = (row.pop('per_forecast'), physics['per_forecast']) \
                 if 'per_forecast' in row and 'per_forecast' in physics else None
             row['harms'] = harms(row['profile'], physics['profile'], None, paired,

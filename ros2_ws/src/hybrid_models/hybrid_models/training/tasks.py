@@ -154,6 +154,33 @@ class RecurrentTask(Task):
             runs.append(ri)
         return np.concatenate(preds), np.concatenate(targets), np.concatenate(runs)
 
+    @torch.no_grad()
+    def validation_forecasts_at(self, model: nn.Module, schedules: list
+                                ) -> list[tuple[np.ndarray, ...]]:
+        """
+        Return ``validation_forecasts(model)`` as served at each of ``schedules`` (a list).
+
+        A hybrid's windows are forecast at several thresholds in one batch, each copy of
+        them with its own half-widths (``HybridModel.forecast``'s ``bounds``): a
+        threshold selection's dozens of forecasts cost a few batches, not a run each.
+        """
+        horizon = self.cfg['validation']['horizon']
+        out = [([], [], []) for _ in schedules]
+        for ri, t0 in self._my_chunks(*self.val_index):
+            w = gather_windows(self.val, ri, t0, self.cfg['window'], horizon)
+            n = len(t0)
+            per_batch = max(1, VAL_CHUNK // n)
+            for first in range(0, len(schedules), per_batch):
+                group = schedules[first:first + per_batch]
+                bounds = torch.cat([model.bounds_at(s, horizon)[:, None].expand(-1, n, -1)
+                                    for s in group], dim=1)
+                pred = predict(model, w.tiled(len(group)), len(group) * n, bounds)
+                for j, (preds, targets, runs) in enumerate(out[first:first + len(group)]):
+                    preds.append(pred[j * n:(j + 1) * n])
+                    targets.append(w.z_target)
+                    runs.append(ri)
+        return [tuple(np.concatenate(part) for part in forecasts) for forecasts in out]
+
     def validate(self, model: nn.Module, phase: dict) -> dict:
         """Multistep score (sum of per-state RMSE / std) and, in phase 1, teacher loss."""
         out = {'score': self.validation_errors(model).score(self.state_std_np)}

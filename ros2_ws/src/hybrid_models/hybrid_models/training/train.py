@@ -240,12 +240,11 @@ def select_threshold(model: HybridModel, task: RecurrentTask, tcfg: dict,
     grid = threshold_grid(tcfg['selection']['thresholds'], cap)
     std = task.state_std_np
 
-    def figures(threshold) -> dict:
-        with model.served_at(threshold):
-            pred, true, runs = task.validation_forecasts(model)
-        return forecast_figures(pred, true, model.spec, std, runs)
+    def figures(schedules: list) -> list[dict]:
+        return [forecast_figures(pred, true, model.spec, std, runs)
+                for pred, true, runs in task.validation_forecasts_at(model, schedules)]
 
-    physics = figures(PHYSICS_ALONE)
+    physics = figures([PHYSICS_ALONE])[0]
     if best_epoch == REFERENCE_EPOCH:
         choice = {'relative_threshold': PHYSICS_ALONE, 'score': physics['score'],
                   'reason': 'no epoch forecast the validation runs better than the physics '
