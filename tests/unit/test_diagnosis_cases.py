@@ -51,7 +51,10 @@ def test_control_reports_nothing(identified):
     assert named.records == []
 
 
-@pytest.mark.parametrize('name', ['current', 'wind', 'fouling'])
+# Fouling stands for the three in the default run; current and wind, each as long again,
+# are slow checks (the full-size proof of all three is test_diagnosis_proof.py).
+@pytest.mark.parametrize('name', [pytest.param('current', marks=pytest.mark.slow),
+                                  pytest.param('wind', marks=pytest.mark.slow), 'fouling'])
 def test_concealed_effect_is_named(identified, name):
     scenario, named = identified(name)
     assert named.status == 'findings'
@@ -63,6 +66,7 @@ def test_concealed_effect_is_named(identified, name):
         assert lo <= record['coefficient'] <= hi and not lo <= 0.0 <= hi
 
 
+@pytest.mark.slow       # shares the current scenario's identification
 def test_current_is_estimated_per_run(identified, tmp_path):
     scenario, named = identified('current')
     record = next(r for r in named.records if r['category'] == 'current')

@@ -70,6 +70,7 @@ def test_kvlcc2_rudder_offset_is_the_offset_it_was_given(identified):
     assert record['term'] == 'delta_0' and lo <= truth <= hi, (truth, record)
 
 
+@pytest.mark.slow       # the KVLCC2's default case is the rudder offset
 def test_kvlcc2_added_resistance_is_thirty_percent_of_r0(identified):
     scenario, named, _ = identified('kvlcc2_hsva', 'resistance')
     record = _only(named, scenario.expect[0])
