@@ -7,22 +7,24 @@ bands (``hybrid_models.bands``) promise their coverage only for the first: throu
 nodes, held-input forecasts on a passage left their band often enough to raise the
 departure WARN on a vessel that matched its model exactly (32 reports in 1.5 h,
 ``offline/bench.py departure``). Whether the vessel departs from its model is a question
-about the model alone, so it is asked of forecasts made, once the horizon has passed,
-from the same window and the inputs that were measured meanwhile.
+about the model alone, so it is asked of forecasts made from the same window and the
+inputs that were measured meanwhile.
 
-``Hindsight`` keeps one window per the tracker's ``forecast_period`` of message time and
-the measured samples since; it hands the skill tracker (``skill.LiveSkill``) the measurements
-``delay`` seconds late (the longest scored step), and at each kept window's stamp in
-that late stream the forecast re-made from it by ``remake(window, applied)``, before
-the measurements it is scored against. The tracker thus sees one time line, in order,
-and its verdicts come ``delay`` seconds after the measurements that decide them. The
-applied inputs are known up to the first forecast step without a measurement (the
-node's windows bridge gaps up to its ``max_gap`` only): a window is scored at the steps
-before it, the later ones are missing (and the window is counted ``windows_gapped``),
-since a held value in the gap would be an assumption again.
+A forecast's step k depends on the inputs of steps 1..k only, so each scored step is
+judged as soon as it matures: ``Hindsight`` keeps one window per the tracker's
+``forecast_period`` of message time and the measured samples since; when the measurement
+at a kept window's scored step k arrives, it re-makes the forecast from the window by
+``remake(window, applied)`` with the inputs measured at steps 1..k, gives the tracker
+(``skill.LiveSkill``) that step, and then the measurement that scores it. The tracker
+sees one time line, in order, as the measurements come: a step 225 s ahead is judged
+225 s after its window, not one horizon after. The applied inputs are known up to the
+first forecast step without a measurement (the node's windows bridge gaps up to its
+``max_gap`` only): a window is scored at the steps before it, the later ones are
+missing (and the window is counted ``windows_gapped``), since a held value in the gap
+would be an assumption again.
 
-Memory is bounded by the delay: the measurements of ``delay`` seconds and one window
-per ``forecast_period`` within it. Times in s of message time.
+Memory is bounded by the longest scored step (``delay``): the measurements of ``delay``
+seconds and one window per ``forecast_period`` within it. Times in s of message time.
 """
 
 from __future__ import annotations
@@ -30,7 +32,6 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-import math
 from typing import Any
 
 import numpy as np
@@ -70,7 +71,7 @@ def applied_future(applied: np.ndarray, horizon: int) -> np.ndarray:
 
 
 class Hindsight:
-    """Feed a skill tracker late, with each kept window's forecast re-made in hindsight."""
+    """Feed a skill tracker each kept window's scored steps, re-made as they mature."""
 
     def __init__(self, skill: LiveSkill, remake: Callable[[Any, np.ndarray], Remade]):
         """
@@ -78,15 +79,16 @@ class Hindsight:
 
         ``remake(window, applied)`` returns the forecast from ``window`` (whatever the
         caller keeps) under ``applied`` (K, m), the measured controls at steps 1..K (K is
-        the longest scored step S, or less before a gap), at least K steps of it.
+        the scored step that matures now), at least K steps of it.
         """
         self.skill = skill
         self.remake = remake
         self.dt = skill.dt
-        self.steps = int(skill.steps.max())
-        self.delay = self.steps * self.dt
+        self.scored = [int(k) for k in skill.steps]
+        self.steps = self.scored[-1]
+        self.delay = self.steps * self.dt    # how far back the inputs of a window reach
         self.rows: deque[Row] = deque()
-        self.windows: deque[tuple[float, Any]] = deque()
+        self.windows: deque[list] = deque()   # [stamp, window, index of its next step]
         self.last_kept: float | None = None
         self.counts = {'windows_kept': 0, 'windows_remade': 0, 'windows_gapped': 0}
 
@@ -107,7 +109,7 @@ class Hindsight:
             return False
         if self.last_kept is not None and stamp < self.last_kept:
             self.reset()   # the time line went back
-        self.windows.append((stamp, window))
+        self.windows.append([stamp, window, 0])
         self.last_kept = stamp
         self.counts['windows_kept'] += 1
         return True
@@ -118,45 +120,44 @@ class Hindsight:
         return self.rows[-1].t if self.rows else None
 
     def add_measurement(self, t: float, states, x: float, y: float, controls) -> None:
-        """Take one measured sample at ``t`` (s); feed the tracker what is now ``delay`` old."""
+        """Take one measured sample at ``t`` (s): score the steps it matures, then it."""
         if self.rows and t < self.rows[-1].t - 0.5 * self.dt:
             self.reset()   # the source restarted
         self.rows.append(Row(float(t), np.asarray(states, np.float64), float(x), float(y),
                              np.asarray(controls, np.float64)))
-        self._release(t - self.delay - 0.5 * self.dt)
+        half = 0.5 * self.dt
+        while self.rows[0].t < t - self.delay - half:
+            self.rows.popleft()   # no kept window's steps reach back that far
+        for entry in self.windows:
+            stamp, window, i = entry
+            if i < len(self.scored) and stamp + self.scored[i] * self.dt <= t + half:
+                entry[2] = self._remake(stamp, window, i)
+        while self.windows and self.windows[0][2] >= len(self.scored):
+            self.windows.popleft()
+        self.skill.add_measurement(t, self.rows[-1].states, x, y)
 
-    def _release(self, until: float) -> None:
-        while True:
-            row_t = self.rows[0].t if self.rows else math.inf
-            window_t = self.windows[0][0] if self.windows else math.inf
-            if min(row_t, window_t) > until:
-                return
-            if row_t <= window_t:
-                row = self.rows.popleft()
-                self.skill.add_measurement(row.t, row.states, row.x, row.y)
-            else:
-                self._remake(*self.windows.popleft())
-
-    def _remake(self, stamp: float, window: Any) -> None:
-        applied = self._applied(stamp)
-        known = len(applied)
-        if known < self.steps:
+    def _remake(self, stamp: float, window: Any, i: int) -> int:
+        """Give the tracker scored step ``i`` of the window; return the next step's index."""
+        step = self.scored[i]
+        applied = self._applied(stamp, step)
+        if len(applied) < step:   # a gap in the inputs: no later step can be scored
             self.counts['windows_gapped'] += 1
-        if known < self.skill.steps.min():
-            return
+            return len(self.scored)
         f = self.remake(window, applied)
-        cut = slice(0, known)   # the steps whose inputs were all measured
         levels = len(f.band_levels)
         self.skill.add_forecast(
-            stamp, f.states[cut], f.x[cut], f.y[cut], f.band_levels,
-            f.band_lower[:, cut] if levels else None, f.band_upper[:, cut] if levels else None,
-            f.band_radius[:, cut] if levels else None, f.band_note)
-        self.counts['windows_remade'] += 1
+            stamp, f.states[:step], f.x[:step], f.y[:step], f.band_levels,
+            f.band_lower[:, :step] if levels else None,
+            f.band_upper[:, :step] if levels else None,
+            f.band_radius[:, :step] if levels else None, f.band_note, step=step)
+        if i == 0:
+            self.counts['windows_remade'] += 1
+        return i + 1
 
-    def _applied(self, stamp: float) -> np.ndarray:
-        """Return the measured controls at steps 1, 2, ... after ``stamp``, up to a gap."""
+    def _applied(self, stamp: float, steps: int) -> np.ndarray:
+        """Return the measured controls at steps 1 .. ``steps`` after ``stamp``, up to a gap."""
         times = np.fromiter((r.t for r in self.rows), float, len(self.rows))
-        wanted = stamp + self.dt * np.arange(1, self.steps + 1)
+        wanted = stamp + self.dt * np.arange(1, steps + 1)
         half = 0.5 * self.dt
         index = np.searchsorted(times, wanted - half)   # the first sample not too early
         found = index < len(times)

@@ -8,8 +8,8 @@ message types it names, and optionally ``/vessel/control_plan``
 Outputs: ``/vessel/forecast`` (Forecast: hybrid forecast, its physical part, the
 LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path),
 ``/vessel/forecast/skill`` (diagnostic_msgs/DiagnosticStatus: the live skill of the
-model, on windows forecast again with the inputs then applied once their horizon has
-passed, ``hindsight`` and ``skill``) and ``/diagnostics`` (WARN when the vessel departs
+model, on windows forecast again with the inputs then applied as each scored step
+matures, ``hindsight`` and ``skill``) and ``/diagnostics`` (WARN when the vessel departs
 from its model). Service ``~/predict`` (Predict): forecasts for candidate control plans,
 evaluated as one batch. Window assembly, plan checks, plausibility limits and
 health figures live in ROS-free modules of this package; the numerics in

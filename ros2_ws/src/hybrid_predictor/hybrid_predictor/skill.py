@@ -154,22 +154,28 @@ class LiveSkill:
     # ------------------------------------------------------------------ input
     def add_forecast(self, stamp: float, states: np.ndarray, x, y, band_levels=(),
                      band_lower=None, band_upper=None, band_radius=None,
-                     band_note: str = '') -> bool:
+                     band_note: str = '', step: int | None = None) -> bool:
         """
         Keep a forecast for scoring if one ``forecast_period`` passed since the last one.
 
         ``states`` (H, n), ``x``, ``y`` (H,) at steps 1..H after ``stamp`` (s); bands as
         the Forecast carries them, reshaped: ``band_lower``/``band_upper`` (L, H, n),
         ``band_radius`` (L, H).
+        ``step``: score this one scored step of the forecast only, just before it matures
+        (``hindsight`` gives each step of a kept window when its inputs are known); no
+        period is then required, the window was kept already.
         Returns True if kept.
         """
-        if not self.wants(stamp):
-            return False
-        if self.last_kept is not None and stamp < self.last_kept:
-            self.reset()   # the time line went back: nothing pending belongs to it
+        if step is None:
+            if not self.wants(stamp):
+                return False
+            if self.last_kept is not None and stamp < self.last_kept:
+                self.reset()   # the time line went back: nothing pending belongs to it
         states = np.asarray(states, np.float64)
         horizon = len(states)
         steps = self.steps[self.steps <= horizon]
+        if step is not None:
+            steps = steps[steps == step]
         if len(steps) == 0:
             return False
         k = steps - 1
@@ -183,8 +189,10 @@ class LiveSkill:
             upper=np.asarray(band_upper, np.float64)[:, k] if banded else None,
             radius=np.asarray(band_radius, np.float64)[:, k] if banded else None,
             scored=np.zeros(len(steps), bool)))
-        self.last_kept = stamp
-        self.counts['forecasts_kept'] += 1
+        if step is None:
+            self.last_kept = stamp
+        if step is None or step == self.steps[0]:
+            self.counts['forecasts_kept'] += 1
         return True
 
     def wants(self, stamp: float) -> bool:
