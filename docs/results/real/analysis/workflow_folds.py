@@ -39,9 +39,11 @@ def at_horizon(pred: np.ndarray, windows, spec) -> float:
 
 
 def open_study(study: Path) -> tuple[list[Fold], dict, object, list[str]]:
-    """Return a workflow study's folds, protocol, vessel and hybrid labels."""
+    """Return a workflow study's folds, protocol, vessel and the labels of its trained hybrids."""
     folds, result = read_study(study)
-    hybrids = [row['label'] for row in result['rows'] if 'physics' in row]
+    # trained per seed (an ensemble row packs them and has no trainings of its own)
+    hybrids = [row['label'] for row in result['rows']
+               if 'physics' in row and 'per_seed_metrics' in row]
     return folds, result['protocol'], read_dataset(folds[0].path).vessel, hybrids
 
 
