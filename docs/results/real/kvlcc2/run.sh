@@ -82,6 +82,15 @@ run python docs/results/real/analysis/workflow_choice.py "$WORK/kvlcc2_cv5_by_sa
 #    served as one ensemble (the workflow's default since 2026-11-26), the two MMG hybrids.
 run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_cv5_ensemble" \
   --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 --folds 5 > /dev/null
+# 12. Measured, not kept: a slower multistep phase (lr 0.0003 instead of 0.001) for both
+#    hybrids of step 11, all five folds, seeds 0-2.
+teacher='{kind: teacher, max_epochs: 15, patience: 4, lr: 0.003}'
+slower='{kind: multistep, max_epochs: 60, patience: 10, lr: 0.0003}'
+run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5_ensemble" \
+  "$WORK/kvlcc2_cv5_lr3" --folds 0 1 2 3 4 --set "training.phases=[$teacher, $slower]" \
+  > /dev/null
+mkdir -p "$OUT/cv5_ensemble/variant_lr3"
+cp "$WORK/kvlcc2_cv5_lr3/variant.json" "$OUT/cv5_ensemble/variant_lr3/"
 for study in heldout cv5 hyd cv5_by_samples cv5_ensemble; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
