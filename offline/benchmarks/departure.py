@@ -149,8 +149,9 @@ def departure(effect: str, onset: float, ramp: float, hours: float | None, rtf: 
     from vessel_ros_bridge.parameters import load_specs, package_config
 
     hook = hook_of(effect)
-    # The node judges a horizon late (hindsight.py); fouling at 20x was named 58 min after
-    # its onset, so an effect is watched for 75 min.
+    # Fouling at 20x was named 58 min after its onset when the node judged a horizon late,
+    # 13 min since each step is judged as it matures (hindsight.py); an effect is watched
+    # for 75 min, the longer of the two with a margin.
     end_s = 3600.0 * hours if hours is not None else (
         onset + 4500.0 if hook is not None else 7200.0)
     predictor = {'use_sim_time': True, 'vessel': vessel, **(params or {})}
