@@ -85,8 +85,7 @@ class Hindsight:
         self.remake = remake
         self.dt = skill.dt
         self.scored = [int(k) for k in skill.steps]
-        self.steps = self.scored[-1]
-        self.delay = self.steps * self.dt    # how far back the inputs of a window reach
+        self.delay = self.scored[-1] * self.dt    # how far back the inputs of a window reach
         self.rows: deque[Row] = deque()
         self.windows: deque[list] = deque()   # [stamp, window, index of its next step]
         self.last_kept: float | None = None
