@@ -128,21 +128,23 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     # step after the pose (against the pose itself, a second of manoeuvring moved v from
     # 0.044 to 0.082 m/s: beyond any tolerance that would still catch a flipped sign).
     # The tolerance is the model's one-step error; a flipped v or r sign exceeds it.
-    def measured_after_first_step():
-        later = t_end + msg.step_period
-        return next((o for o in inputs.odom
-                     if abs(m.seconds_from_stamp(o.header.stamp) - later) < 1e-3), None)
-    assert spin_until(ros_node, measured_after_first_step, 10)
-    twist = measured_after_first_step().twist.twist
+    def stamped(msgs, t):
+        """Return the message of ``msgs`` stamped ``t`` (s), or None while none is."""
+        return next((o for o in msgs if abs(m.seconds_from_stamp(o.header.stamp) - t) < 1e-3),
+                    None)
+
+    later = t_end + msg.step_period
+    assert spin_until(ros_node, lambda: stamped(inputs.odom, later), 10)
+    twist = stamped(inputs.odom, later).twist.twist
     assert msg.child_frame_id == 'base_link'
     measured = np.array([twist.linear.x, twist.linear.y, twist.angular.z])
     first = hybrid[0, [0, 1, 3]]
 
     def actuators_at(t):
-        return next((list(a.position) + list(a.velocity) for a in inputs.actuators
-                     if abs(m.seconds_from_stamp(a.header.stamp) - t) < 1e-3), None)
-    assert spin_until(ros_node, lambda: actuators_at(t_end + msg.step_period), 10)
-    if actuators_at(t_end) == actuators_at(t_end + msg.step_period):
+        a = stamped(inputs.actuators, t)
+        return None if a is None else list(a.position) + list(a.velocity)
+    assert spin_until(ros_node, lambda: actuators_at(later), 10)
+    if actuators_at(t_end) == actuators_at(later):
         np.testing.assert_allclose(first[:2], measured[:2], rtol=0.2, atol=0.02)
         # r of 0.007-0.011 rad/s, one-step errors up to 0.0024 measured: atol 0.02 would
         # pass a flipped r too.
