@@ -17,10 +17,12 @@ rostools: setup  ## the test-only ros2 CLI and launch in .venv-rostools (idempot
 demo: setup  ## run the main job: simulator + predictor + client, forecast vs truth
 	@tools/with_env.sh tools/demo.sh
 
-test: setup rostools  ## quality gates and the default test suite (slow checks excluded)
+test:  ## quality gates and the default test suite (slow checks excluded)
+	@tools/setup.sh test
 	@tools/with_env.sh tools/run_tests.sh
 
-test-slow: setup rostools  ## only the slow checks (minutes each)
+test-slow:  ## only the slow checks (minutes each)
+	@tools/setup.sh test
 	@tools/with_env.sh tools/run_tests.sh -m slow
 
 lint: setup  ## quality gates only

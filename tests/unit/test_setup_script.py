@@ -65,3 +65,23 @@ def test_no_network_to_the_registry_is_one_clear_line(tmp_path):
 def test_unknown_stage_is_rejected(stage):
     result = run_setup(stage, {})
     assert result.returncode != 0 and 'unknown stage' in error_lines(result.stderr)[0]
+
+
+def test_two_stages_run_at_once_and_either_ones_failure_fails_the_pair(tmp_path):
+    # `make test`'s set-up builds the workspace and the test-only tools at the same time.
+    marks = tmp_path / 'marks'
+    script = f"""
+        source {SETUP}
+        slow_ok() {{ echo start-ok >>{marks}; sleep 1; echo end-ok >>{marks}; }}
+        slow_fail() {{ echo start-fail >>{marks}; sleep 1; echo end-fail >>{marks}; return 3; }}
+        both slow_ok slow_ok && echo pair-ok
+        both slow_ok slow_fail || echo pair-failed-$?
+        both slow_fail slow_ok || echo pair-failed-$?
+    """
+    result = subprocess.run(['bash', '-c', script], capture_output=True, text=True,
+                            timeout=60)
+    assert result.stdout.split() == ['pair-ok', 'pair-failed-3', 'pair-failed-3']
+    events = marks.read_text().split()
+    # Each pair's two stages started before either ended.
+    for pair in range(3):
+        assert all(e.startswith('start') for e in events[4 * pair:4 * pair + 2]), events
