@@ -124,40 +124,42 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     width = np.reshape(msg.band_upper, (2, 900, 5)) - np.reshape(msg.band_lower, (2, 900, 5))
     assert np.all(np.diff(radius, axis=1) >= 0) and np.all(np.diff(width, axis=1) >= -1e-12)
     assert np.all(radius[1] > radius[0]) and 50.0 < radius[1, 299] < 500.0   # m after 5 min
-    # States in the odometry's FLU: the first step matches the odometry it forecasts, one
-    # step after the pose (against the pose itself, a second of manoeuvring moved v from
-    # 0.044 to 0.082 m/s: beyond any tolerance that would still catch a flipped sign).
-    # The tolerance is the model's one-step error; a flipped v or r sign exceeds it.
+    # States in the odometry's FLU: the first steps of the forecasts match the odometry
+    # one step later, and v and r are far nearer it than their mirror images (FRD), whose
+    # signs they would have with a frame error. Judged over many forecasts: one forecast's
+    # first step is off by the model's one-step error, which in this noiseless run reaches
+    # 0.065 m/s in v and 0.005 rad/s in r (rms 0.014 and 0.0011; the run offline, steps
+    # 60-1500), beyond any single-forecast tolerance that would still catch a flip: two
+    # test runs failed such a check at steps 200 and 208, with the offline errors exactly.
+    assert msg.child_frame_id == 'base_link'
+
     def stamped(msgs, t):
         """Return the message of ``msgs`` stamped ``t`` (s), or None while none is."""
         return next((o for o in msgs if abs(m.seconds_from_stamp(o.header.stamp) - t) < 1e-3),
                     None)
 
-    later = t_end + msg.step_period
-    assert spin_until(ros_node, lambda: stamped(inputs.odom, later), 10)
-    twist = stamped(inputs.odom, later).twist.twist
-    assert msg.child_frame_id == 'base_link'
-    measured = np.array([twist.linear.x, twist.linear.y, twist.angular.z])
-    first = hybrid[0, [0, 1, 3]]
+    def first_steps() -> tuple[np.ndarray, np.ndarray]:
+        """First forecast steps of u, v, r and the odometry at their stamps, one row each."""
+        pairs = [(f, stamped(inputs.odom, m.seconds_from_stamp(f.header.stamp) + f.step_period))
+                 for f in covered()]
+        pairs = [(f, o) for f, o in pairs if o is not None]
+        first = np.array([np.reshape(f.hybrid, (900, 5))[0, [0, 1, 3]] for f, _ in pairs])
+        measured = np.array([[o.twist.twist.linear.x, o.twist.twist.linear.y,
+                              o.twist.twist.angular.z] for _, o in pairs])
+        return first.reshape(-1, 3), measured.reshape(-1, 3)
+    assert spin_until(ros_node, lambda: len(first_steps()[0]) >= 20, 60), \
+        f'{len(first_steps()[0])} forecasts with their next odometry'
+    first, measured = first_steps()
 
-    def actuators_at(t):
-        a = stamped(inputs.actuators, t)
-        return None if a is None else list(a.position) + list(a.velocity)
-    assert spin_until(ros_node, lambda: actuators_at(later), 10)
-    if actuators_at(t_end) == actuators_at(later):
-        np.testing.assert_allclose(first[:2], measured[:2], rtol=0.2, atol=0.02)
-        # r of 0.007-0.011 rad/s, one-step errors up to 0.0024 measured: atol 0.02 would
-        # pass a flipped r too.
-        np.testing.assert_allclose(first[2], measured[2], rtol=0.2, atol=0.004)
-    else:
-        # The forecast holds the controls of t_end and they changed within the step: its
-        # first step may then be off by more than the model's one-step error (a full run
-        # failed v by 0.049 m/s, 0.089 against 0.139, its actuators not kept to tell why).
-        # The frames are still told apart: v and r nearer the measurement than its mirror
-        # image. With the controls held over the step the tight check above applies.
-        assert np.all(np.abs(first[1:] - measured[1:]) < np.abs(first[1:] + measured[1:])), (
-            first, measured)
-        np.testing.assert_allclose(first[0], measured[0], rtol=0.2, atol=0.02)
+    def rms(x):
+        return np.sqrt(np.mean(np.square(x), axis=0))
+    # u: the model's one-step error stays within 2 % in that run.
+    np.testing.assert_allclose(first[:, 0], measured[:, 0], rtol=0.02, atol=0.1)
+    # v, r: the error's rms is at most 0.33 and 0.36 times the mirror's over any 20
+    # consecutive forecasts of the run offline (0.04 and 0.08 over all of them); a flipped
+    # sign gives the inverse, 2.8 or more.
+    ratio = rms(first[:, 1:] - measured[:, 1:]) / rms(first[:, 1:] + measured[:, 1:])
+    assert np.all(ratio < 0.5), (ratio, first, measured)
 
     model, _ = default_model()
     window = inputs.window_until(t_end, 60)
