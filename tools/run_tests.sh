@@ -26,13 +26,14 @@ echo "== pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVER
 # Arguments (focused files, -m slow, ...) run as given, in one process.
 [ "$#" -gt 0 ] && { pytest_run "$@"; exit $?; }
 # The whole default suite: the unit tests are CPU-bound numerics with no clock in their
-# verdicts, so they share the cores (one process per core, a test file per process);
-# the integration tests time a live ROS graph and run alone after them.
+# verdicts, so they share the cores (one process per core, a test file per process).
+# The integration tests, after them, start live ROS graphs that mostly wait on their
+# clocks: two files at a time, each worker in a DDS domain of its own (conftest.py).
 workers="$(python -c 'import os; print(max(1, min(len(os.sched_getaffinity(0)), 4)))')"
 # The slowest tests are listed at the end of each run: the suite must stay within its
 # time budget (README), and CI's log then says where the time went.
 pytest_run tests/unit -n "$workers" --dist loadfile --durations=8
 unit=$?
-pytest_run tests/integration --durations=8
+pytest_run tests/integration -n 2 --dist loadfile --durations=8
 integration=$?
 [ "$unit" -eq 0 ] && [ "$integration" -eq 0 ]

@@ -27,6 +27,11 @@ INSTALL = REPO / 'ros2_ws' / 'install'
 # must be in place before rclpy is imported anywhere.
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(110 + os.getpid() % 100))
+# Parallel workers (pytest-xdist gw0, gw1, ...) each take the next domain: their graphs
+# never meet (domain IDs stop at 232 on loopback).
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER', 'gw0')
+os.environ['ROS_DOMAIN_ID'] = str(
+    (int(os.environ['ROS_DOMAIN_ID']) + int(_WORKER.removeprefix('gw'))) % 233)
 os.environ.setdefault('ROS_LOG_DIR', str(REPO / 'ros2_ws' / 'log' / 'ros'))
 # The test process's writers repair a lost sample within 0.1 s (the profile says why);
 # processes the tests start do not inherit it (child_environment).
