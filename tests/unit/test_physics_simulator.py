@@ -240,6 +240,7 @@ def test_constructor_validates_arguments():
         sim.set_state(speed=3.0)
 
 
+@pytest.mark.slow       # twelve 5-minute runs (12 s); spectrum, forces: test_physics_environment
 def test_default_sea_looks_like_the_papers_data():
     # Wave-induced motions (waves on minus waves off, same seeds) of a few runs.
     base = {'noise': {'enabled': False}, 'warmup_s': 30.0}

@@ -24,18 +24,18 @@ def run_cli(*args):
 
 def test_tiny_dataset_end_to_end(tmp_path):
     out = tmp_path / 'ds'
-    result = run_cli('--runs', 3, '--hours', 5 / 60, '--seed', 4, '--out', out, '--chunk', 2)
+    result = run_cli('--runs', 3, '--hours', 1 / 60, '--seed', 4, '--out', out, '--chunk', 2)
     assert result.returncode == 0, result.stderr
     summary = json.loads(result.stdout)
-    assert summary['runs'] == 3 and summary['samples_per_run'] == 301
+    assert summary['runs'] == 3 and summary['samples_per_run'] == 61
     ds = read_dataset(out)
     assert ds.run_ids() == ['run_000', 'run_001', 'run_002']
     assert {len(ds.run_ids(s)) for s in ('train', 'val', 'test')} == {1}
     table = ds.load('run_001')
-    assert len(table) == 301
+    assert len(table) == 61
     for column in SHIP.dataset_columns + ('u_true', 'phi_true', 'psi_true', 'x_true', 'y_true'):
         assert column in table.columns
-    np.testing.assert_array_equal(table['t'].to_numpy(), np.arange(301.0))
+    np.testing.assert_array_equal(table['t'].to_numpy(), np.arange(61.0))
     assert table[['x_true', 'y_true']].iloc[0].tolist() == [0.0, 0.0]
     assert (table['n'] > 30).all()                              # rad/s, not rpm
     prov = ds.manifest['provenance']
