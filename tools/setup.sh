@@ -109,6 +109,12 @@ pip_install() {
   fi
 }
 
+# pip install --no-deps, its failure left to the resolving install that follows.
+pip_unresolved() {
+  "$VENV/bin/python" -m pip install --disable-pip-version-check --retries 2 --timeout 30 \
+    --no-deps "$@" >>"$VENV/pip-install.log" 2>&1 || true
+}
+
 stage_deps() {
   local want; want="$(deps_hash)"
   if [ "$(cat "$VENV/.deps-hash" 2>/dev/null)" = "$want" ] && deps_present; then
@@ -116,8 +122,26 @@ stage_deps() {
   fi
   say "installing pinned dependencies into $VENV (torch first; a few minutes on a fresh machine)"
   : >"$VENV/pip-install.log"
-  local constraints=()
-  [ -f "$REQ/constraints.txt" ] && constraints=(-c "$REQ/constraints.txt")
+  local constraints=() lock="$REQ/constraints.txt"
+  if [ -f "$lock" ]; then
+    constraints=(-c "$lock")
+    # Unpacking and byte-compiling wheels is one core's work per pip: the lock's exact
+    # pins go first in two disjoint streams without resolution (--no-deps), torch (the
+    # largest, from its own spec) heading one. The resolving installs below then find
+    # them in place, add whatever the lock lacks, and say why when anything failed.
+    local parts="$VENV/.lock-parts" stream
+    mkdir -p "$parts"
+    grep -E '^[A-Za-z0-9]' "$lock" | awk 'NR % 2 == 0' >"$parts/0.txt"
+    grep -E '^[A-Za-z0-9]' "$lock" | awk 'NR % 2 == 1' >"$parts/1.txt"
+    for stream in 0 1; do
+      (
+        [ "$stream" = 1 ] || pip_unresolved -r "$REQ/torch.txt"
+        pip_unresolved -r "$parts/$stream.txt"
+      ) &
+    done
+    wait || true
+    rm -rf "$parts"
+  fi
   pip_install -r "$REQ/torch.txt"
   pip_install "${constraints[@]}" -r "$REQ/ros.txt" -r "$REQ/python.txt"
   pip_install --no-deps -r "$REQ/reference.txt"
