@@ -32,7 +32,7 @@ echo "== pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVER
 workers="$(python -c 'import os; print(max(1, min(len(os.sched_getaffinity(0)), 4)))')"
 # The slowest tests are listed at the end of each run: the suite must stay within its
 # time budget (README), and CI's log then says where the time went.
-pytest_run tests/unit -n "$workers" --dist loadfile --durations=8
+pytest_run tests/unit -n "$workers" --dist loadfile --no-loadscope-reorder --durations=8
 unit=$?
 pytest_run tests/integration -n 2 --dist loadfile --durations=8
 integration=$?

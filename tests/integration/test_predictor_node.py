@@ -135,20 +135,18 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     # test runs failed such a check at steps 200 and 208, with the offline errors exactly.
     assert msg.child_frame_id == 'base_link'
 
-    def stamped(msgs, t):
-        """Return the message of ``msgs`` stamped ``t`` (s), or None while none is."""
-        return next((o for o in msgs if abs(m.seconds_from_stamp(o.header.stamp) - t) < 1e-3),
-                    None)
-
     def first_steps() -> tuple[np.ndarray, np.ndarray]:
         """First forecast steps of u, v, r and the odometry at their stamps, one row each."""
-        pairs = [(f, stamped(inputs.odom, m.seconds_from_stamp(f.header.stamp) + f.step_period))
-                 for f in covered()]
-        pairs = [(f, o) for f, o in pairs if o is not None]
-        first = np.array([np.reshape(f.hybrid, (900, 5))[0, [0, 1, 3]] for f, _ in pairs])
-        measured = np.array([[o.twist.twist.linear.x, o.twist.twist.linear.y,
-                              o.twist.twist.angular.z] for _, o in pairs])
-        return first.reshape(-1, 3), measured.reshape(-1, 3)
+        # Evaluated at every spin while the test waits: one pass over each list, no more.
+        odom = {round(m.seconds_from_stamp(o.header.stamp), 3): o for o in inputs.odom}
+        first, measured = [], []
+        for f in covered():
+            o = odom.get(round(m.seconds_from_stamp(f.header.stamp) + f.step_period, 3))
+            if o is not None:
+                first.append([f.hybrid[0], f.hybrid[1], f.hybrid[3]])
+                measured.append([o.twist.twist.linear.x, o.twist.twist.linear.y,
+                                 o.twist.twist.angular.z])
+        return np.reshape(first, (-1, 3)), np.reshape(measured, (-1, 3))
     assert spin_until(ros_node, lambda: len(first_steps()[0]) >= 20, 60), \
         f'{len(first_steps()[0])} forecasts with their next odometry'
     first, measured = first_steps()
