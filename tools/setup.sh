@@ -131,9 +131,9 @@ stage_deps() {
     # them in place, add whatever the lock lacks, and say why when anything failed.
     local parts="$VENV/.lock-parts" stream
     mkdir -p "$parts"
-    grep -E '^[A-Za-z0-9]' "$lock" | awk 'NR % 2 == 0' >"$parts/0.txt"
-    grep -E '^[A-Za-z0-9]' "$lock" | awk 'NR % 2 == 1' >"$parts/1.txt"
     for stream in 0 1; do
+      grep -E '^[A-Za-z0-9]' "$lock" | awk -v part="$stream" 'NR % 2 == part' \
+        >"$parts/$stream.txt"
       (
         [ "$stream" = 1 ] || pip_unresolved -r "$REQ/torch.txt"
         pip_unresolved -r "$parts/$stream.txt"
@@ -280,7 +280,7 @@ main() {
     rostools) stage_venv; stage_deps; stage_fixups; stage_rostools ;;
     test) stage_venv; stage_deps; stage_fixups; both stage_build stage_rostools ;;
     lock) stage_lock ;;
-    -h|--help) sed -n '2,16p' "${BASH_SOURCE[0]}" | sed 's/^# \{0,1\}//' ;;
+    -h|--help) awk 'NR > 1 && !/^#/ {exit} NR > 1 {sub(/^# ?/, ""); print}' "${BASH_SOURCE[0]}" ;;
     *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools, test or lock)" ;;
   esac
 }

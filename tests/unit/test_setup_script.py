@@ -85,3 +85,13 @@ def test_two_stages_run_at_once_and_either_ones_failure_fails_the_pair(tmp_path)
     # Each pair's two stages started before either ended.
     for pair in range(3):
         assert all(e.startswith('start') for e in events[4 * pair:4 * pair + 2]), events
+
+
+def test_help_is_the_header_comment_and_nothing_after_it():
+    result = run_setup('--help', {})
+    assert result.returncode == 0
+    lines = result.stdout.splitlines()
+    assert lines[0].startswith('Idempotent set-up')
+    assert lines[-1] == 'Each failure ends with one line starting "setup: error:".'
+    assert 'Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|lock]' \
+        in lines
