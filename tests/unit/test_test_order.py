@@ -1,10 +1,6 @@
 """The test session's longest-first list names test files that exist."""
 
-from pathlib import Path
-
-from tests.conftest import LONGEST_FIRST
-
-TESTS = Path(__file__).resolve().parents[1]
+from tests.conftest import LONGEST_FIRST, TESTS
 
 
 def test_every_file_of_the_longest_first_list_exists_once():
