@@ -4,8 +4,12 @@ Service soak: concurrent what-if clients against a forecasting predictor, over D
 Starts the simulator (``--rtf`` times real time) and the predictor as processes, waits
 for the first forecast, then for ``--duration`` seconds keeps ``--concurrency``
 requests of ``--plans`` plans in flight from each of ``--clients`` clients, while it
-listens to /vessel/forecast. A client answered "busy" waits ``--busy-backoff`` seconds
-before it sends again, as a well-behaved client does. Figures: requests sent, answered
+listens to /vessel/forecast. Plans hold each row for ``--plan-period`` seconds and
+answers carry every ``--answer-period`` seconds' step (10 s each by default over the
+patrol boat's 15-minute horizon, what a controller ranking plans needs; 0 sends and
+receives every 1 s step, ten times the bytes). A client answered "busy" waits
+``--busy-backoff`` seconds before it sends again, as a well-behaved client does.
+Figures: the request's and a successful answer's size; requests sent, answered
 (success, busy or another failure) and never answered; p50/p99 latency; forecasts
 published during the soak and the longest silence between them, in message time
 (forecast periods) and wall time; how many /diagnostics reports said ERROR or WARN
@@ -16,6 +20,8 @@ at the end, and 20 samples in between (growth that levels off, or keeps on).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+import math
 from pathlib import Path
 import threading
 import time
@@ -42,6 +48,12 @@ def add_arguments(parser) -> None:
                         help='requests each client keeps in flight (default 8)')
     parser.add_argument('--plans', type=int, default=64,
                         help='control plans per request (default 64)')
+    parser.add_argument('--plan-period', type=float, default=10.0,
+                        help='seconds each plan row holds; 0: one row a forecast step '
+                             '(default 10)')
+    parser.add_argument('--answer-period', type=float, default=10.0,
+                        help='seconds between the forecast steps an answer carries; 0: '
+                             'every step (default 10)')
     parser.add_argument('--rtf', type=float, default=1.0,
                         help='simulator speed, times real time (default 1: a vessel)')
     parser.add_argument('--forecast-period', type=float, default=1.0,
@@ -54,8 +66,18 @@ def add_arguments(parser) -> None:
 
 def run(args) -> dict:
     """Run the soak with the command line's figures; return the JSON-ready result."""
-    return soak(args.duration, args.clients, args.concurrency, args.plans, args.rtf,
+    shape = RequestShape(args.plans, args.plan_period, args.answer_period)
+    return soak(args.duration, args.clients, args.concurrency, shape, args.rtf,
                 args.forecast_period, args.busy_backoff, predictor_params=args.param)
+
+
+@dataclass(frozen=True)
+class RequestShape:
+    """What every soak request holds: plans, s a plan row holds, s between answer steps."""
+
+    plans: int = 64
+    plan_period: float = 10.0
+    answer_period: float = 10.0
 
 
 def rss_mb(pid: int) -> float:
@@ -66,27 +88,29 @@ def rss_mb(pid: int) -> float:
     raise RuntimeError(f'no VmRSS for process {pid}')
 
 
-def make_plans(count: int, seed: int = 0):
-    """Return ``count`` ControlPlans of steady shaft and rudder variations."""
+def make_plans(count: int, period: float = 0.0, seed: int = 0):
+    """Return ``count`` ControlPlans of steady shaft and rudder, rows of ``period`` s."""
     from hybrid_predictor.plan_message import control_plan
     from vessel_description import load_vessel
 
     boat = load_vessel('patrol_boat')
+    rows = HORIZON if period == 0 else math.ceil(HORIZON * boat.dt / period - 1e-9)
     rng = np.random.default_rng(seed)
     plans = []
     for _ in range(count):
         rudder = float(rng.uniform(-0.2, 0.2))
         row = [float(rng.uniform(60, 100)), rudder, rudder]
-        plans.append(control_plan(boat, np.tile(row, (HORIZON, 1))))
+        plans.append(control_plan(boat, np.tile(row, (rows, 1)), step_period=period))
     return plans
 
 
 class Load:
     """Clients that keep requests in flight and count what comes back."""
 
-    def __init__(self, node, clients: int, concurrency: int, plans: int,
+    def __init__(self, node, clients: int, concurrency: int, shape: RequestShape,
                  busy_backoff: float):
         from rclpy.qos import QoSProfile
+        from rclpy.serialization import serialize_message
 
         from hybrid_predictor_interfaces.srv import Predict
 
@@ -94,7 +118,10 @@ class Load:
         self.busy_backoff = busy_backoff
         self.clients = [node.create_client(Predict, '/vessel/predictor/predict', qos_profile=qos)
                         for _ in range(clients)]
-        self.request = Predict.Request(plans=make_plans(plans))
+        self.request = Predict.Request(plans=make_plans(shape.plans, shape.plan_period),
+                                       answer_period=shape.answer_period)
+        self.size_of = serialize_message   # bytes of a message as it crosses DDS
+        self.request_bytes = len(serialize_message(self.request))
         self.concurrency = concurrency
         self.lock = threading.Lock()
         self.sent = self.success = self.busy = self.failed = 0
@@ -103,6 +130,7 @@ class Load:
         self.busy_latencies: list[float] = []
         self.failures: dict[str, int] = {}
         self.deadline = 0.0
+        self.answer_kb = None   # the size of a successful answer, measured once
 
     def begin(self, seconds: float) -> None:
         """Start every client's requests; new ones are sent for ``seconds``."""
@@ -121,11 +149,14 @@ class Load:
     def _answered(self, client, future, sent_at: float) -> None:
         response = future.result()
         busy = not response.success and response.message.startswith('busy')
+        measure = False
         with self.lock:
             self.latencies.append(time.monotonic() - sent_at)
             if response.success:
                 self.success += 1
                 self.success_latencies.append(time.monotonic() - sent_at)
+                measure = self.answer_kb is None
+                self.answer_kb = self.answer_kb or 0.0
             elif busy:
                 self.busy += 1
                 self.busy_latencies.append(time.monotonic() - sent_at)
@@ -133,6 +164,8 @@ class Load:
                 self.failed += 1
                 key = response.message[:60]
                 self.failures[key] = self.failures.get(key, 0) + 1
+        if response.success and measure:
+            self.answer_kb = round(len(self.size_of(response)) / 1e3, 1)
         if time.monotonic() >= self.deadline:
             return
         if busy and self.busy_backoff > 0:
@@ -146,7 +179,7 @@ class Load:
         return self.success + self.busy + self.failed
 
 
-def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float,
+def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, rtf: float,
          forecast_period: float = 1.0, busy_backoff: float = 0.2,
          log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
     """Run the soak (see the module docstring) and return its figures."""
@@ -156,12 +189,12 @@ def soak(duration: float, clients: int, concurrency: int, plans: int, rtf: float
     # The nodes are stopped however the soak ends: normally, by an error, or by SIGINT,
     # SIGTERM or SIGHUP of this process (a `timeout` around it).
     with Children(log_dir) as children:
-        return _soak(children, log_dir, duration, clients, concurrency, plans, rtf,
+        return _soak(children, log_dir, duration, clients, concurrency, shape, rtf,
                      forecast_period, busy_backoff, predictor_params)
 
 
 def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: int,
-          plans: int, rtf: float, forecast_period: float, busy_backoff: float,
+          shape: RequestShape, rtf: float, forecast_period: float, busy_backoff: float,
           predictor_params) -> dict:
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
@@ -174,7 +207,8 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     children.node('ship_sim_node', 'simulator', params={'seed': 5, 'real_time_factor': rtf})
     extra = [arg for p in predictor_params for arg in ('-p', p)]
     predictor = children.node('hybrid_predictor', 'predictor', *extra, params={
-        'use_sim_time': True, 'max_plans': max(plans, 1), 'forecast_period': forecast_period})
+        'use_sim_time': True, 'max_plans': max(shape.plans, 1),
+        'forecast_period': forecast_period})
     context = rclpy.Context()
     rclpy.init(context=context, **rclpy_options())
     node = rclpy.create_node('soak_client', context=context)
@@ -187,7 +221,7 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     reports: list[tuple[float, int, str]] = []   # (wall s, level, message)
     node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: reports.extend(
         (time.monotonic(), s.level[0], s.message) for s in m.status), 50)
-    load = Load(node, clients, concurrency, plans, busy_backoff)
+    load = Load(node, clients, concurrency, shape, busy_backoff)
     spinner.start()
     try:
         deadline = time.monotonic() + 180 + WINDOW_S / rtf
@@ -233,7 +267,10 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     busy = np.asarray(load.busy_latencies) * 1e3
     return {
         'duration_s': round(ended - started, 1),
-        'clients': clients, 'concurrency': concurrency, 'plans_per_request': plans,
+        'clients': clients, 'concurrency': concurrency, 'plans_per_request': shape.plans,
+        'plan_period_s': shape.plan_period, 'answer_period_s': shape.answer_period,
+        'request_kb': round(load.request_bytes / 1e3, 1),
+        'success_answer_kb': load.answer_kb,
         'simulator_rtf': rtf, 'busy_backoff_s': busy_backoff,
         'requests_sent': load.sent,
         'requests_answered': load.answered,

@@ -190,24 +190,24 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
     client = ros_node.create_client(Predict, '/vessel/predictor/predict')
     assert client.wait_for_service(timeout_sec=60)
 
-    def plan(rudder, n=900, shaft=90.0):
+    def plan(rudder, n=900, shaft=90.0, step_period=0.0):
         return ControlPlan(control_names=['n', 'delta_port', 'delta_stbd'],
                            control_units=['rad/s', 'rad', 'rad'],
-                           values=[shaft, rudder, rudder] * n)
+                           values=[shaft, rudder, rudder] * n, step_period=step_period)
 
-    def call(plans):
-        future = client.call_async(Predict.Request(plans=plans))
+    def call(plans, answer_period=0.0):
+        future = client.call_async(Predict.Request(plans=plans, answer_period=answer_period))
         assert spin_until(ros_node, future.done, 30), 'no response'
         return future.result()
 
-    def call_when_ready(plans, attempts):
+    def call_when_ready(plans, attempts, answer_period=0.0):
         # "no forecast" answers are the window's state, not the plans': until it has
         # filled, and at 20x real time whenever the node's inputs lag its /clock by more
         # than max_age (5 s of simulated time, 0.25 s of wall time: seen after the
         # malformed plans, "newest state is 10.0 s old ... stamps 7.0 s behind the
         # clock"), which the node resolves within seconds of simulated time.
         for _ in range(attempts):
-            response = call(plans)
+            response = call(plans, answer_period)
             if response.success:
                 return response
             assert 'no forecast' in response.message, response.message
@@ -221,11 +221,27 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
     # Positive rudder turns to port: ENU yaw grows (counter-clockwise) the most.
     assert final_heading[2] > final_heading[1] > final_heading[0]
 
-    for bad, why in (([plan(0.0, n=899)], 'need 900'),
-                     ([plan(float('nan'))], 'is nan'),
-                     ([plan(0.0, shaft=1e6)], 'outside'),
-                     ([], 'send 1 to')):
-        answer = call(bad)
+    # A plan of 10 s rows is its 1 s rows held; an answer of every tenth step (10 s) is
+    # a tenth of the steps, with its period and horizon saying so.
+    response = call_when_ready([plan(0.1, n=90, step_period=10.0), plan(0.1)], 5, 10.0)
+    assert response.success, response.message
+    coarse, fine = response.forecasts
+    n_state, levels = len(coarse.state_names), len(coarse.band_levels)
+    assert (coarse.horizon, coarse.step_period) == (90, 10.0)
+    assert (len(coarse.hybrid), len(coarse.physics)) == (90 * n_state, 90 * n_state)
+    assert len(coarse.x) == len(coarse.y) == len(coarse.heading) == 90
+    assert len(coarse.band_lower) == len(coarse.band_upper) == levels * 90 * n_state
+    assert len(coarse.band_position_radius) == levels * 90
+    for field in ('hybrid', 'physics', 'x', 'y', 'heading', 'band_lower'):
+        assert list(getattr(coarse, field)) == list(getattr(fine, field)), field
+
+    for bad, why, period in (([plan(0.0, n=899)], 'need 900', 0.0),
+                             ([plan(float('nan'))], 'is nan', 0.0),
+                             ([plan(0.0, shaft=1e6)], 'outside', 0.0),
+                             ([], 'send 1 to', 0.0),
+                             ([plan(0.0, n=89, step_period=10.0)], 'need 90', 0.0),
+                             ([plan(0.0)], 'does not divide the horizon', 7.0)):
+        answer = call(bad, period)
         assert not answer.success and why in answer.message, answer.message
         assert len(answer.forecasts) == 0
     response = call_when_ready([plan(0.0)], 5)

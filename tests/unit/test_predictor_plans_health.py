@@ -10,6 +10,8 @@ from hybrid_predictor import health
 from hybrid_predictor.plans import (
     PlanError,
     PlanLimits,
+    answer_steps,
+    answer_stride,
     bound_hit_fraction,
     check_plan,
     hold_latest,
@@ -111,6 +113,53 @@ def test_malformed_plans_are_refused_in_one_line_with_the_reason(change, message
     with pytest.raises(PlanError, match=re.escape(message)) as refused:
         planned(**change, index=3)
     assert str(refused.value).startswith('plan 3: ') and '\n' not in str(refused.value)
+
+
+def test_a_coarse_plan_holds_each_row_for_its_step_period():
+    dt, horizon = PATROL.dt, 25
+    coarse = np.column_stack([[60.0, 70.0, 80.0], [0.0, 0.1, -0.1], [0.0, 0.1, -0.1]])
+    # Rows of three forecast steps each: 9 rows cover 25 steps (the last one cut).
+    rows = np.repeat(np.tile(coarse, (3, 1)), 3, axis=0)[:horizon]
+    out = check_plan(ACTUATORS, ACTUATOR_UNITS, np.tile(coarse, (3, 1)), horizon, LIMITS,
+                     step_period=3 * dt)
+    np.testing.assert_array_equal(out[:, :3], rows)
+    assert out.shape == (horizon, 6) and np.isnan(out[:, 3:]).all()
+    # The same plan given step by step is the same matrix.
+    np.testing.assert_array_equal(out, check_plan(ACTUATORS, ACTUATOR_UNITS, rows, horizon,
+                                                  LIMITS))
+    # On the topic a plan may be longer: every row is expanded.
+    longer = check_plan(ACTUATORS, ACTUATOR_UNITS, np.tile(coarse, (4, 1)), horizon, LIMITS,
+                        exact=False, step_period=3 * dt)
+    assert len(longer) == 36
+
+
+@pytest.mark.parametrize('period, message', [
+    (2.5, 'step_period must be 0 (every step) or a whole multiple of the forecast step '
+          '1 s, got 2.5'),
+    (-2.0, 'got -2.0'), (0.5, 'got 0.5'), (math.inf, 'got inf'), (math.nan, 'got nan'),
+])
+def test_a_step_period_off_the_forecast_steps_is_refused(period, message):
+    with pytest.raises(PlanError, match=re.escape(message)) as refused:
+        planned(step_period=period, index=2)
+    assert str(refused.value).startswith('plan 2: step_period')
+
+
+def test_a_coarse_plan_of_the_wrong_length_says_how_many_rows_it_needs():
+    with pytest.raises(PlanError, match=re.escape(
+            'plan 0: 2 rows of 2 s, need 3 for 5 forecast steps of 1 s')):
+        planned(values=actuator_rows()[:2], step_period=2 * PATROL.dt)
+
+
+def test_an_answer_carries_the_steps_ending_at_every_answer_period():
+    assert answer_stride(0.0, 0.1, 900) == 1
+    assert answer_stride(1.0, 0.1, 900) == 10
+    np.testing.assert_array_equal(answer_steps(900, 10), np.arange(9, 900, 10))
+    np.testing.assert_array_equal(answer_steps(5, 1), np.arange(5))
+    with pytest.raises(PlanError, match=re.escape(
+            'answer_period 0.7 s does not divide the horizon (900 steps of 0.1 s)')):
+        answer_stride(0.7, 0.1, 900)
+    with pytest.raises(PlanError, match='answer_period must be 0'):
+        answer_stride(0.15, 0.1, 900)
 
 
 def test_plan_limits_are_the_vessels_declared_ranges_and_wind_needs_one():

@@ -66,6 +66,8 @@ from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
 from hybrid_predictor.plans import (
     PlanError,
     PlanLimits,
+    answer_steps,
+    answer_stride,
     bound_hit_fraction,
     check_plan,
     hold_latest,
@@ -396,7 +398,8 @@ class PredictorNode(Node):
 
     def _on_plan(self, msg: ControlPlan) -> None:
         try:
-            matrix = check_plan(*plan_fields(msg), self.horizon, self.limits, exact=False)
+            matrix = check_plan(*plan_fields(msg), self.horizon, self.limits, exact=False,
+                                step_period=msg.step_period)
         except PlanError as exc:
             with self.count_lock:
                 self.counts['plans_rejected'] += 1
@@ -550,25 +553,33 @@ class PredictorNode(Node):
                                          np.asarray(msg.heading)), self.spec)
 
     def _forecast_messages(self, result, hybrid: np.ndarray, physics: np.ndarray,
-                           assumed: list[Assumed]) -> list[Forecast]:
-        """Return one Forecast per plan of a batch, hybrid and physics (plans, H, n)."""
+                           assumed: list[Assumed], stride: int = 1) -> list[Forecast]:
+        """
+        Return one Forecast per plan of a batch, hybrid and physics (plans, H, n).
+
+        ``stride`` > 1 keeps the steps ending at every ``stride`` steps (a what-if
+        request's answer_period; ``plans.answer_steps``) in every array.
+        """
         north, east, psi = track(hybrid, result.pose, self.spec)   # one pass, all plans
-        x_enu, y_enu, _ = frames.position_ned_to_enu(north, east)
-        heading = frames.heading_ned_to_enu(psi)
+        keep = answer_steps(self.horizon, stride)
+        x_enu, y_enu, _ = frames.position_ned_to_enu(north[..., keep], east[..., keep])
+        heading = frames.heading_ned_to_enu(psi[..., keep])
         names = self.spec.state_names
-        hybrid_flu = frames.states_frd_to_flu(hybrid, names)
-        physics_flu = frames.states_frd_to_flu(physics, names)
+        hybrid_flu = frames.states_frd_to_flu(hybrid[:, keep], names)
+        physics_flu = frames.states_frd_to_flu(physics[:, keep], names)
         if self.bands is not None:
             lower, upper, radius = self.bands.bounds(hybrid)
-            lower, upper = frames.interval_frd_to_flu(lower, upper, names)
+            lower, upper = frames.interval_frd_to_flu(lower[..., keep, :],
+                                                      upper[..., keep, :], names)
+            radius = radius[..., keep]
         out = []
         for i in range(len(hybrid)):
             msg = Forecast()
             msg.header.stamp = messages.stamp_from_seconds(result.t_end)
             msg.header.frame_id = self.p['world_frame']
             msg.child_frame_id = self.p['body_frame']
-            msg.step_period = float(self.spec.dt)
-            msg.horizon = self.horizon
+            msg.step_period = float(self.spec.dt * stride)
+            msg.horizon = len(keep)
             msg.state_names = list(self.spec.state_names)
             msg.state_units = list(self.spec.state_units)
             msg.vessel = self.spec.name
@@ -624,7 +635,7 @@ class PredictorNode(Node):
             return response
         try:
             response.success, response.message, response.forecasts = self._predict(
-                request.plans)
+                request.plans, request.answer_period)
         except Exception as exc:  # noqa: BLE001 - a request must never stop the node
             self.get_logger().error(f'~/predict failed: {exc!r}')
             response.success, response.message = False, f'internal error: {exc}'
@@ -636,12 +647,14 @@ class PredictorNode(Node):
                 self.counts['service_failed'] += 1
         return response
 
-    def _predict(self, plans) -> tuple[bool, str, list]:
+    def _predict(self, plans, answer_period: float) -> tuple[bool, str, list]:
         """Return (success, message, forecasts) for a request's plans."""
         if not 1 <= len(plans) <= self.p['max_plans']:
             return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', []
         try:   # every plan, as a whole, before any window or model work
-            matrices = [check_plan(*plan_fields(plan), self.horizon, self.limits, index=i)
+            stride = answer_stride(answer_period, self.spec.dt, self.horizon)
+            matrices = [check_plan(*plan_fields(plan), self.horizon, self.limits, index=i,
+                                   step_period=plan.step_period)
                         for i, plan in enumerate(plans)]
         except PlanError as exc:
             return False, str(exc), []
@@ -655,8 +668,10 @@ class PredictorNode(Node):
             forecast, _ = forecast_holding_wind(self.engine, result.states, result.controls,
                                                 future, held)
         out = self._forecast_messages(result, forecast.hybrid, forecast.physics,
-                                      [followed(plan) for plan in plans])
+                                      [followed(plan) for plan in plans], stride)
         for i, msg in enumerate(out):
+            # Every step's states are checked; a non-finite track between the answer's
+            # steps would carry on to its last step, which every answer holds.
             problem = self._withheld(forecast.hybrid[i], msg)
             if problem:
                 return False, f'plan {i}: forecast withheld: {problem}', []

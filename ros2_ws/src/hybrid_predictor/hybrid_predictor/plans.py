@@ -4,13 +4,16 @@ Control plans for a forecast, in the vessel's own controls: checks and the model
 A plan names its columns with the vessel's control names (``Vessel.control_names``:
 the actuators, then the environment columns, e.g. ``n, delta_port, delta_stbd,
 wind_speed, wind_dir_cos, wind_dir_sin`` for the patrol boat or ``n, delta`` for the
-KVLCC2 model), gives each column's unit, and holds a matrix of steps x controls. Every
+KVLCC2 model), gives each column's unit, and holds a matrix of rows x controls, one row
+per forecast step or one per ``step_period`` seconds (zero-order hold). Every
 actuator is planned; an environment input (wind) is planned with all its columns or
 left out, and then its latest measurement holds. Plans are checked as a whole before
 they reach the model against what the vessel file declares: names, units (exactly the
 vessel's), a whole number of rows, finite values, each actuator's ``range``, the
 ``limits`` of an environment column (``wind_speed``; a vessel that declares none takes
-plans without wind only) and unit direction vectors. Refusals are one line. No ROS.
+plans without wind only) and unit direction vectors. Refusals are one line. A what-if
+answer may carry every ``answer_period`` seconds' step instead of all (``answer_stride``).
+No ROS.
 """
 
 from __future__ import annotations
@@ -31,6 +34,8 @@ from vessel_description.vocabulary import (
 # |cos^2 + sin^2 - 1| a planned direction may have (float rounding of cos and sin of
 # one angle is ~1e-16; a pair off by more is not a direction).
 DIRECTION_TOLERANCE = 1e-6
+# Relative slack of "a whole multiple of the step period" (0.3 / 0.1 is 2.9999999999999996).
+MULTIPLE_TOLERANCE = 1e-9
 
 
 class PlanError(ValueError):
@@ -45,10 +50,12 @@ class PlanLimits:
     ``names`` and ``units`` are the vessel's control vector; ``ranges`` maps a control
     to (low, high), or to None when a plan may not give it (no declared range);
     ``actuators`` must be planned; each of ``groups`` (an environment input's columns)
-    is planned whole or not at all; each of ``directions`` is a (cos, sin) pair.
+    is planned whole or not at all; each of ``directions`` is a (cos, sin) pair;
+    ``dt`` (s) is the forecast's step period.
     """
 
     vessel: str
+    dt: float
     names: tuple[str, ...]
     units: tuple[str, ...]
     ranges: dict
@@ -72,8 +79,9 @@ class PlanLimits:
                     ranges[column] = vessel.limits.get(column)
                 else:   # a direction component
                     ranges[column] = (-1.0, 1.0)
-        return cls(vessel.name, tuple(vessel.control_names), tuple(vessel.control_units),
-                   ranges, tuple(vessel.actuator_names), tuple(groups), tuple(directions))
+        return cls(vessel.name, float(vessel.dt), tuple(vessel.control_names),
+                   tuple(vessel.control_units), ranges, tuple(vessel.actuator_names),
+                   tuple(groups), tuple(directions))
 
     def describe(self) -> str:
         """Return the plan columns this vessel takes, with units, for messages."""
@@ -85,19 +93,59 @@ def hold_latest(latest_control: np.ndarray, horizon: int) -> np.ndarray:
     return np.broadcast_to(latest_control, (1, horizon, latest_control.shape[-1])).copy()
 
 
+def steps_per_period(period: float, dt: float, what: str) -> int:
+    """
+    Return how many forecast steps of ``dt`` s a ``period`` (s) spans; 0 means one.
+
+    Raise PlanError (one line naming ``what``) unless the period is 0 or a positive
+    whole multiple of ``dt``.
+    """
+    if period == 0:
+        return 1
+    ratio = period / dt if math.isfinite(period) and period > 0 else math.nan
+    steps = round(ratio) if math.isfinite(ratio) else 0
+    if steps < 1 or abs(ratio - steps) > MULTIPLE_TOLERANCE * ratio:
+        raise PlanError(f'{what} must be 0 (every step) or a whole multiple of the '
+                        f'forecast step {dt:g} s, got {period!r}')
+    return steps
+
+
+def answer_stride(answer_period: float, dt: float, horizon: int) -> int:
+    """
+    Return the stride of a what-if answer's steps (``Predict`` request's answer_period).
+
+    The answer carries the steps ending at every ``answer_period`` s (``answer_steps``);
+    the period must be 0 (every step) or a whole multiple of ``dt`` dividing the horizon.
+    """
+    stride = steps_per_period(answer_period, dt, 'answer_period')
+    if horizon % stride:
+        raise PlanError(f'answer_period {answer_period:g} s does not divide the horizon '
+                        f'({horizon} steps of {dt:g} s)')
+    return stride
+
+
+def answer_steps(horizon: int, stride: int) -> np.ndarray:
+    """Return the indices of the forecast steps an answer of ``stride`` carries (the last too)."""
+    return np.arange(stride - 1, horizon, stride)
+
+
 def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
-               limits: PlanLimits, index: int = 0, exact: bool = True) -> np.ndarray:
+               limits: PlanLimits, index: int = 0, exact: bool = True,
+               step_period: float = 0.0) -> np.ndarray:
     """
     Validate a whole plan before any array work; return its (steps, n_control) matrix.
 
-    ``names`` and ``units`` label the columns of ``values`` (row-major steps x columns,
-    flat or 2-D), as ``hybrid_predictor_interfaces/ControlPlan`` carries them. The
-    matrix is returned in the vessel's control order, NaN in the columns of an
-    environment input left out. Rows: exactly ``horizon`` (``exact``) or at least that
-    many (a plan on the topic, which may start before the forecast does). Raise
-    PlanError with one line naming the plan (``index``) and what is wrong.
+    ``names`` and ``units`` label the columns of ``values`` (row-major rows x columns,
+    flat or 2-D), as ``hybrid_predictor_interfaces/ControlPlan`` carries them; each row
+    holds for ``step_period`` s (0: one forecast step, ``limits.dt``). The matrix is
+    returned one row per forecast step, in the vessel's control order, NaN in the
+    columns of an environment input left out. Rows: exactly enough for ``horizon``
+    steps (``exact``) or at least that many (a plan on the topic, which may start
+    before the forecast does). Raise PlanError with one line naming the plan
+    (``index``) and what is wrong.
     """
     where = f'plan {index}'
+    hold = steps_per_period(step_period, limits.dt, f'{where}: step_period')
     names, units = [str(n) for n in names], [str(u) for u in units]
     if not names:
         raise PlanError(f'{where}: no control_names; vessel {limits.vessel!r} takes '
@@ -134,10 +182,13 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
         raise PlanError(f'{where}: {len(flat)} values are not whole rows of '
                         f'{len(names)} controls')
     rows = flat.reshape(-1, len(names))
-    steps = len(rows)
-    if steps != horizon if exact else steps < horizon:
-        need = horizon if exact else f'at least {horizon}'
-        raise PlanError(f'{where}: {steps} steps of {len(names)} controls, need {need}')
+    steps, needed = len(rows), -(-horizon // hold)
+    if steps != needed if exact else steps < needed:
+        need = needed if exact else f'at least {needed}'
+        if hold == 1:
+            raise PlanError(f'{where}: {steps} steps of {len(names)} controls, need {need}')
+        raise PlanError(f'{where}: {steps} rows of {step_period:g} s, need {need} for '
+                        f'{horizon} forecast steps of {limits.dt:g} s')
     bad = np.argwhere(~np.isfinite(rows))
     if len(bad):
         k, j = bad[0]
@@ -164,7 +215,8 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
                 k = off[0]
                 raise PlanError(f'{where}: ({cos_name}, {sin_name})[{k}] = ({c[k]:.6g}, '
                                 f'{s[k]:.6g}) is not a unit direction')
-    return matrix
+    matrix = np.repeat(matrix, hold, axis=0)   # one row per forecast step
+    return matrix[:horizon] if exact else matrix
 
 
 def plan_rows(matrix: np.ndarray, plan_start: float, t_end: float, dt: float,

@@ -151,8 +151,10 @@ class ReForecast:
         if plan is None:
             raise ReForecastError(f'the plan it followed (stamp {key[0]:.3f} s, id '
                                   f'{key[1]!r}) was not kept')
+        # A plan recorded before plans had a step period has one row per step.
         matrix = check_plan(list(plan.control_names), list(plan.control_units),
-                            np.asarray(plan.values), horizon, self.limits, exact=False)
+                            np.asarray(plan.values), horizon, self.limits, exact=False,
+                            step_period=getattr(plan, 'step_period', 0.0))
         rows, why = plan_rows(matrix, key[0], result.t_end, self.spec.dt, horizon, math.inf)
         if rows is None:
             raise ReForecastError(f'its plan does not cover it: {why or "starts later"}')
