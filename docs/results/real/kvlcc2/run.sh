@@ -91,6 +91,11 @@ run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5_e
   > /dev/null
 mkdir -p "$OUT/cv5_ensemble/variant_lr3"
 cp "$WORK/kvlcc2_cv5_lr3/variant.json" "$OUT/cv5_ensemble/variant_lr3/"
+# 13. What the multistep phase sees of each physics (step 11's folds and checkpoints): the
+#    physics alone's normalized loss over 1-400 steps on the training runs, against the
+#    hybrids' multistep training loss at the kept and the last epoch.
+run python docs/results/real/analysis/physics_drift.py "$WORK/kvlcc2_cv5_ensemble" \
+  "$OUT/cv5_ensemble" > /dev/null
 for study in heldout cv5 hyd cv5_by_samples cv5_ensemble; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
