@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
+import signal
 import subprocess
 import sys
 import threading
@@ -37,6 +38,13 @@ os.environ.setdefault('ROS_LOG_DIR', str(REPO / 'ros2_ws' / 'log' / 'ros'))
 # processes the tests start do not inherit it (child_environment).
 TEST_PROCESS_PROFILE = Path(__file__).with_name('fastdds_test_process.xml')
 os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(TEST_PROCESS_PROFILE)
+# A suite started in the background of a script (`make test &`, a CI runner's job) runs
+# with SIGINT ignored, and every process it starts inherits that: a `ros2 launch` then
+# outlived its SIGINT by the whole 10 s stop step, and the demo ignored the SIGINT its
+# stop test sent and ran its 17 simulated minutes (48 s). The processes are started as
+# from a terminal: SIGINT at its default here, which a child then starts with.
+if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.SIG_DFL):
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def child_environment(**extra: str) -> dict:

@@ -8,8 +8,9 @@ own (a signal meant for the tool's terminal never reaches it half-way) and stops
 one of them -- SIGINT, then SIGTERM, then SIGKILL, each to the whole group -- when the
 tool's ``with`` block ends, whether it ends normally, by an exception, or because the
 tool was told to stop: SIGTERM and SIGHUP are turned into ``SystemExit`` while the
-block runs (SIGINT already raises KeyboardInterrupt), so the ``finally`` clauses of the
-tool and this module's clean-up run before the tool exits.
+block runs and SIGINT raises KeyboardInterrupt (also in a tool started with SIGINT
+ignored, which Python would otherwise leave so), so the ``finally`` clauses of the tool
+and this module's clean-up run before the tool exits.
 
 A tool that joins the graph itself should start rclpy with
 ``rclpy.init(signal_handler_options=SignalHandlerOptions.NO)`` (see ``rclpy_options``)
@@ -149,6 +150,13 @@ class Children:
         for sig in EXIT_SIGNALS:
             with contextlib.suppress(ValueError):   # not the main thread: leave as is
                 self._old_handlers[sig] = signal.signal(sig, _exit_on_signal)
+        # A process started with SIGINT ignored (a background job of a non-interactive
+        # shell, a test runner's worker) keeps it ignored, and Python then raises no
+        # KeyboardInterrupt: a tool that says it stops on SIGINT must restore it.
+        with contextlib.suppress(ValueError):
+            if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.SIG_DFL):
+                self._old_handlers[signal.SIGINT] = signal.signal(
+                    signal.SIGINT, signal.default_int_handler)
         return self
 
     def __exit__(self, *exc) -> None:

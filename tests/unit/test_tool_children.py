@@ -1,0 +1,55 @@
+"""vessel_bringup.processes.Children: a tool stops its children on SIGINT, however started."""
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+
+import pytest
+
+# A tool: starts one child (a long sleep) and waits; prints the child's pid.
+TOOL = textwrap.dedent("""
+    import sys, time
+    from vessel_bringup.processes import Children
+    with Children() as children:
+        child = children.start([sys.executable, '-c', 'import time; time.sleep(60)'],
+                               'sleeper', quiet=True)
+        print(child.pid, flush=True)
+        time.sleep(60)
+""")
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = open(f'/proc/{pid}/stat').read().rsplit(')', 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != 'Z'
+
+
+@pytest.mark.parametrize('inherited', ['default', 'ignored'])
+def test_sigint_stops_the_tool_and_its_child_even_when_it_started_ignored(inherited):
+    # A background job of a non-interactive shell starts with SIGINT ignored, and
+    # Python then leaves it ignored: the tool must stop all the same.
+    def start_as_shell_would():
+        if inherited == 'ignored':
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    tool = subprocess.Popen([sys.executable, '-c', TOOL], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=start_as_shell_would)
+    try:
+        child = int(tool.stdout.readline())
+        assert alive(child)
+        os.kill(tool.pid, signal.SIGINT)
+        code = tool.wait(20)
+        assert code != 0 and 'KeyboardInterrupt' in tool.stderr.read()
+        deadline = time.monotonic() + 5
+        while alive(child) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert not alive(child), 'the child outlived its tool'
+    finally:
+        tool.kill()
+        tool.wait()
