@@ -5,8 +5,11 @@ Usage:  tools/with_env.sh python docs/results/real/analysis/correction_variants.
             STUDY OUT --folds 2 4 --seeds 0 1 2 --set model.hidden=16 --set model.layers=1
 
 STUDY is the --out folder of ``offline/workflow.py --folds K``. For each given fold,
-seed and hybrid of the study (one per physics), the study's own training config of that
-run is trained again with the ``--set`` overrides (``offline/train.py``, two trainings
+seed and hybrid of the study (one per physics; ``--models`` to choose), the study's own
+training config of that run is trained again with the ``--set`` overrides (in which
+``{study}``, ``{fold}`` and ``{seed}`` stand for the study folder and the run's fold
+and seed, e.g. ``training.init_from={study}/runs/hybrid_on_nominal_physics/fold{fold}/
+seed{seed}/model.safetensors``) (``offline/train.py``, two trainings
 at a time, one thread each; a finished training in OUT is kept). Then the study's
 models and the variants forecast the fold's held-out runs with the study's protocol,
 and the position error at the horizon's end is printed and written to OUT/variant.json:
@@ -35,7 +38,7 @@ TRAIN = Path(__file__).resolve().parents[4] / 'offline' / 'train.py'
 
 
 def train(config: Path, out: Path, seed: int, overrides: list[str]) -> Path:
-    """Train ``config`` with ``overrides`` into ``out`` unless already done; return out."""
+    """Train ``config`` with ``overrides`` (placeholders filled) into ``out``; return out."""
     if (out / MODEL_FILE).is_file():
         return out
     out.mkdir(parents=True, exist_ok=True)
@@ -67,7 +70,10 @@ def main(argv: list[str]) -> int:
     parser.add_argument('--folds', type=int, nargs='+', required=True)
     parser.add_argument('--seeds', type=int, nargs='+', default=[0, 1, 2])
     parser.add_argument('--set', dest='overrides', action='append', default=[],
-                        metavar='KEY=VALUE', help='config override, as for train.py')
+                        metavar='KEY=VALUE', help='config override, as for train.py; '
+                        '{study}, {fold} and {seed} are filled in per run')
+    parser.add_argument('--models', nargs='+', metavar='LABEL',
+                        help="the study's hybrids to vary (default: all)")
     args = parser.parse_args(argv)
     if not args.overrides:
         parser.error('give at least one --set: the variant to compare')
@@ -75,11 +81,21 @@ def main(argv: list[str]) -> int:
     chosen = [f for f in folds if f.index in args.folds]
     if len(chosen) != len(set(args.folds)):
         parser.error(f'the study has folds {[f.index for f in folds]}')
+    if args.models:
+        unknown = sorted(set(args.models) - set(hybrids))
+        if unknown:
+            parser.error(f"{unknown} not among the study's hybrids {hybrids}")
+        hybrids = [label for label in hybrids if label in args.models]
+
+    def filled(fold, seed) -> list[str]:
+        return [item.format(study=args.study, fold=fold.index, seed=seed)
+                for item in args.overrides]
+
     tasks = [(run_dir(args.study, label, fold, 0) / 'config.yaml',
-              variant_dir(args.out, label, fold, seed), seed)
+              variant_dir(args.out, label, fold, seed), seed, filled(fold, seed))
              for fold in chosen for label in hybrids for seed in args.seeds]
     with ThreadPoolExecutor(max_workers=2) as pool:
-        list(pool.map(lambda t: train(*t, args.overrides), tasks))
+        list(pool.map(lambda t: train(*t), tasks))
     window, horizon, stride = (protocol[k] for k in ('window', 'horizon', 'stride'))
     rows = []
     for fold in chosen:

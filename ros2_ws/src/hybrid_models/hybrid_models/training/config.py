@@ -88,6 +88,11 @@ DEFAULTS: dict = {
         # the backward pass (hybrid_models.compiled_physics), on CPUs: the same step,
         # several times faster for first-principles physics; false: torch's autograd.
         'compiled_physics': True,
+        # A hybrid checkpoint of the same size whose recurrent layers (init and lstm)
+        # start this training, e.g. the hybrid on the nominal physics for the one on the
+        # augmented physics; the correction's head still starts as model.correction_init,
+        # so the training still starts from its own physics' forecast. null: none.
+        'init_from': None,
         # Do no harm (hybrid_models.selection): after training, the served relative
         # threshold is chosen on the validation runs among these (0, the physics alone,
         # always included; none above model.relative_threshold when that is set; null:

@@ -128,6 +128,32 @@ def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'a
         leave(group)
 
 
+# The recurrent layers a warm start copies (nets.HybridModel); the head is left as it is.
+WARM_START_LAYERS = ('init.', 'lstm.')
+
+
+def warm_start(model, path: Path) -> dict:
+    """
+    Copy the recurrent layers of the hybrid checkpoint ``path`` into ``model``.
+
+    Refused (ValueError, one line) unless ``model`` is a hybrid and the checkpoint holds
+    every such layer with the same shape. Return what was copied, for the checkpoint.
+    """
+    if not isinstance(model, HybridModel):
+        raise ValueError(f'training.init_from: only a hybrid starts from another, not a '
+                         f'{model.kind}')
+    source = load_checkpoint(path).model_state
+    own = model.state_dict()
+    names = [n for n in own if n.startswith(WARM_START_LAYERS)]
+    unfit = [n for n in names if n not in source or source[n].shape != own[n].shape]
+    if unfit:
+        raise ValueError(f'training.init_from: {path} is not a hybrid of this size '
+                         f'({unfit[0]} missing or of another shape)')
+    model.load_state_dict({n: source[n] for n in names}, strict=False)
+    return {'path': str(path), 'layers': sorted({n.split('.')[0] for n in names}),
+            'tensors': len(names)}
+
+
 def _train(cfg: dict, spec: Vessel, ds: Dataset, out_dir: Path, resume: bool,
            group: Group) -> dict:
     tcfg = cfg['training']
@@ -192,6 +218,8 @@ def _train_cached(cfg, spec, ds, out_dir, resume, group, cache, t_start) -> dict
                                                              writer)
         group.barrier()
         base.update(phys_info)
+    if tcfg['init_from']:
+        base['init_from'] = warm_start(model, Path(tcfg['init_from']))
     model.to(group.device)
     if isinstance(model, HybridModel) and tcfg['compiled_physics'] and \
             group.device.type == 'cpu':
