@@ -8,7 +8,7 @@ import pytest
 
 from hybrid_models.checkpoint import load_model
 from hybrid_models.cli import crossval
-from hybrid_models.studies.crossval import make_folds
+from hybrid_models.studies.crossval import Fold, ModelPlan, make_folds
 from hybrid_models.toy import write_toy_dataset
 from vessel_datasets.format import DatasetError, read_dataset, resplit
 
@@ -202,3 +202,37 @@ def test_folds_balanced_by_samples_deal_long_recordings_apart(toy, tmp_path):
         assert totals(folds) == [1090, 1900, 2000], seed
     with pytest.raises(ValueError, match='balance must be'):
         make_folds(ds, tmp_path / 'bad', 3, balance='runs')
+
+
+def test_a_model_that_starts_from_another_trains_after_it_from_its_checkpoint(
+        tmp_path, monkeypatch):
+    from hybrid_models.studies import crossval as studies
+
+    folds = [Fold(k, tmp_path / f'fold{k}', (), (), ()) for k in range(2)]
+    started, finished = [], []
+
+    def train_job(label, config, overrides, out):
+        started.append((label, list(overrides), len(finished)))
+        finished.append(label)
+        return {'label': label, 'status': 'trained', 'dir': str(out)}
+
+    monkeypatch.setattr(studies, 'train_job', train_job)
+    models = [ModelPlan('warm', tmp_path / 'c.yaml', start_from='base'),
+              ModelPlan('base', tmp_path / 'c.yaml')]
+    studies.train_plan(models, folds, [0, 1], tmp_path / 'out', jobs=2, say=lambda m: None)
+    order = [label.split('/')[0] for label, _, _ in started]
+    assert order.count('base') == order.count('warm') == 4
+    # Every base training had finished before the first warm one started.
+    first_warm = order.index('warm')
+    assert set(order[:first_warm]) == {'base'} and started[first_warm][2] == 4
+    for label, overrides, _ in started:
+        name, fold, seed = label.split('/')
+        start = [o for o in overrides if o.startswith('training.init_from=')]
+        if name == 'warm':
+            assert start == [f'training.init_from={tmp_path}/out/runs/base/{fold}/{seed}/'
+                             f'model.safetensors']
+        else:
+            assert start == []
+    with pytest.raises(ValueError, match="start_from 'nowhere' is not a model of the plan"):
+        studies.train_plan([ModelPlan('x', tmp_path / 'c.yaml', start_from='nowhere')],
+                           folds, [0], tmp_path / 'out', say=lambda m: None)

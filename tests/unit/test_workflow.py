@@ -61,6 +61,10 @@ def test_each_fold_is_diagnosed_without_its_test_runs_and_its_physics_retrained(
         hybrid = out / 'runs' / AUGMENTED.replace(' ', '_') / f"fold{fold['index']}" / \
             'seed0' / 'config.yaml'
         assert 'augmented_physics.yaml' in hybrid.read_text()
+        # It started from the hybrid on the nominal physics of its fold and seed.
+        nominal_run = out / 'runs' / NOMINAL.replace(' ', '_') / f"fold{fold['index']}" / \
+            'seed0' / 'model.safetensors'
+        assert f'init_from: {nominal_run}' in hybrid.read_text()
     report = (out / 'report.md').read_text()
     assert 'a stand-in finding' in report and 'Do no harm' in report
     assert f'{out}/' not in report   # the folds' reports are named relative to it

@@ -25,13 +25,17 @@ from pathlib import Path
 import subprocess
 import sys
 
+import numpy as np
 from workflow_folds import at_horizon, open_study, pooled_over_runs
 
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import forecast_windows, load_runs
 from hybrid_models.evaluation import PhysicsOnly
+from hybrid_models.metrics import forecast_metrics
 from hybrid_models.models import predict
-from hybrid_models.studies.crossval import run_dir
+from hybrid_models.selection import harms
+from hybrid_models.studies.crossval import ensemble_path, run_dir
+from hybrid_models.training.ensemble import serve_ensemble
 from hybrid_models.training.train import MODEL_FILE
 
 TRAIN = Path(__file__).resolve().parents[4] / 'offline' / 'train.py'
@@ -74,6 +78,9 @@ def main(argv: list[str]) -> int:
                         '{study}, {fold} and {seed} are filled in per run')
     parser.add_argument('--models', nargs='+', metavar='LABEL',
                         help="the study's hybrids to vary (default: all)")
+    parser.add_argument('--ensemble', action='store_true',
+                        help="also the variant's seeds of a fold served as one ensemble, "
+                             "against the study's ensemble of the same fold")
     args = parser.parse_args(argv)
     if not args.overrides:
         parser.error('give at least one --set: the variant to compare')
@@ -97,10 +104,11 @@ def main(argv: list[str]) -> int:
     with ThreadPoolExecutor(max_workers=2) as pool:
         list(pool.map(lambda t: train(*t), tasks))
     window, horizon, stride = (protocol[k] for k in ('window', 'horizon', 'stride'))
-    rows = []
+    rows, pooled_preds, targets = [], {}, []
     for fold in chosen:
         runs = [r for r in load_runs(fold.path, 'test', spec) if r.length >= window + horizon]
         windows = forecast_windows(runs, window, horizon, stride, 'true')
+        targets.append(windows.z_target)
         fold_rows = [{'fold': fold.index, 'run': r.run_id,
                       'forecasts': int((windows.run_index == k).sum())}
                      for k, r in enumerate(runs)]
@@ -110,12 +118,22 @@ def main(argv: list[str]) -> int:
             variants = [load_model(variant_dir(args.out, label, fold, s) / MODEL_FILE)[0]
                         for s in args.seeds]
             alone = predict(PhysicsOnly(study_models[0].physical), windows)
-            preds = {'study': [predict(m, windows) for m in study_models],
+            preds = {'physics alone': [alone],
+                     'study': [predict(m, windows) for m in study_models],
                      'variant': [predict(m, windows) for m in variants]}
+            if args.ensemble:
+                packed = variant_dir(args.out, label, fold, 0).parent / 'ensemble.safetensors'
+                if not packed.is_file():
+                    serve_ensemble([variant_dir(args.out, label, fold, s) / MODEL_FILE
+                                    for s in args.seeds], fold.path, packed)
+                preds['study ensemble'] = [predict(load_model(
+                    ensemble_path(args.study, label, fold))[0], windows)]
+                preds['variant ensemble'] = [predict(load_model(packed)[0], windows)]
+            for name, members in preds.items():
+                pooled_preds.setdefault(f'{label}: {name}', []).append(members)
             for k, row in enumerate(fold_rows):
                 mine = windows.run_index == k
                 own = windows.subset(mine)
-                row[f'{label}: physics alone'] = [at_horizon(alone[mine], own, spec)]
                 for name, members in preds.items():
                     row[f'{label}: {name}'] = [at_horizon(p[mine], own, spec)
                                                for p in members]
@@ -124,10 +142,25 @@ def main(argv: list[str]) -> int:
     for key in keys:
         mean, sd = pooled(rows, key)
         print(f'{key}: {mean:.2f} ± {sd:.2f} m at {horizon * spec.dt:.0f} s')
+    # Do no harm over all folds: a seed (or ensemble) worse than its physics alone at a
+    # reported step of the pooled forecasts.
+    true = np.concatenate(targets)
+    profile = {key: [forecast_metrics(np.concatenate(per_fold), true, spec)['profile']
+                     for per_fold in zip(*folds_preds, strict=True)]
+               for key, folds_preds in pooled_preds.items()}
+    harm = {}
+    for key, profiles in profile.items():
+        label = key.split(': ')[0]
+        if not key.endswith('physics alone'):
+            alone = profile[f'{label}: physics alone'][0]
+            harm[key] = [harms(p, alone) for p in profiles]
+            print(f'{key}: worse than its physics alone at a reported step in '
+                  f'{sum(map(bool, harm[key]))} of {len(profiles)}')
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'variant.json').write_text(json.dumps(
         {'overrides': args.overrides, 'folds': args.folds, 'seeds': args.seeds,
-         'pooled': {k: pooled(rows, k) for k in keys}, 'runs': rows}, indent=1))
+         'pooled': {k: pooled(rows, k) for k in keys}, 'harms_vs_physics': harm,
+         'runs': rows}, indent=1))
     return 0
 
 

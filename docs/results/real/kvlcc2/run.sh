@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Derive every KVLCC2 figure in docs/results/real/README.md from the original tank logs.
 # Usage (repo root, after `make setup`): docs/results/real/kvlcc2/run.sh [SHARED_REAL] [WORK]
-# About five hours on 2 cores: 15 trainings on the held-out split and 75 + 30 + 50 over five
-# folds, one to three minutes each (a second call keeps every finished training).
+# About five and a half hours on 2 cores: 15 trainings on the held-out split and
+# 75 + 30 + 50 + 25 over five folds, one to three minutes each (a second call keeps every
+# finished training).
 set -euo pipefail
 REAL="${1:-../shared/real}"
 WORK="${2:-/tmp/real}"
@@ -96,6 +97,17 @@ cp "$WORK/kvlcc2_cv5_lr3/variant.json" "$OUT/cv5_ensemble/variant_lr3/"
 #    hybrids' multistep training loss at the kept and the last epoch.
 run python docs/results/real/analysis/physics_drift.py "$WORK/kvlcc2_cv5_ensemble" \
   "$OUT/cv5_ensemble" > /dev/null
+# 14. The hybrid on the augmented physics started from the recurrent layers of the hybrid
+#    on the nominal physics of its fold and seed (training.init_from; what the workflow
+#    does by default since 2026-11-27, --cold-start as before), step 11's folds, 5 seeds.
+run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5_ensemble" \
+  "$WORK/kvlcc2_cv5_warm" --folds 0 1 2 3 4 --seeds 0 1 2 3 4 \
+  --models "hybrid on augmented physics" \
+  --set 'training.init_from={study}/runs/hybrid_on_nominal_physics/fold{fold}/seed{seed}/model.safetensors' \
+  > /dev/null
+mkdir -p "$OUT/cv5_ensemble/variant_warm"
+cp "$WORK/kvlcc2_cv5_warm/variant.json" "$OUT/cv5_ensemble/variant_warm/"
+sed -i "s#$WORK/#\$WORK/#g" "$OUT/cv5_ensemble/variant_warm/variant.json"
 for study in heldout cv5 hyd cv5_by_samples cv5_ensemble; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \

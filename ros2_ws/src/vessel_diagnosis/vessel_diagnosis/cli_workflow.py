@@ -13,7 +13,9 @@ the nominal physics, then by that fold's augmented physics; any family's physics
 and the LSTM baseline of --lstm are trained with every seed on every fold, and all are
 compared on the held-out runs: nominal physics alone, augmented physics alone, the
 hybrid on each, the LSTM. Each hybrid seed is checked against its own physics at every
-reported horizon step (do no harm).
+reported horizon step (do no harm). The hybrid on the augmented physics starts from
+the recurrent layers of the one on the nominal physics of its fold and seed (its
+correction starts at zero all the same; --cold-start: from scratch).
 
 Writes into --out: report.md (the table, what each fold's diagnosis found, the check),
 table.md, results.json, position_error_over_horizon.png, folds/ (views and each fold's
@@ -53,6 +55,10 @@ def parse_args(argv):
     parser.add_argument('--lstm', type=Path, help='training config of the LSTM baseline')
     parser.add_argument('--physics', help="nominal physics file (default: the one the "
                                           "dataset's vessel file names)")
+    parser.add_argument('--cold-start', action='store_true',
+                        help='train the hybrid on the augmented physics from scratch '
+                             '(default: from the recurrent layers of the hybrid on the '
+                             'nominal physics of its fold and seed)')
     add_plan_options(parser)
     args = parser.parse_args(argv)
     if args.seeds < 1:
@@ -84,7 +90,7 @@ def main(argv=None) -> int:
             say(f"fold {fold.index}: {diagnoses[fold.index]['summary']}")
         augmented = {k: d['augmented'] or nominal for k, d in diagnoses.items()}
         models = plan(args.hybrid.resolve(), args.lstm and args.lstm.resolve(), nominal,
-                      augmented, args.set)
+                      augmented, args.set, warm_start=not args.cold_start)
         result = run_plan(args, models, folds, say)
     except (DatasetError, CheckpointError, ValueError) as exc:
         print(f'{PROG}: error: {exc}', file=sys.stderr)

@@ -56,18 +56,24 @@ def diagnose_fold(dataset: Dataset, fold: Fold, physics: str | None, out: Path,
 
 
 def plan(hybrid_config: Path, lstm_config: Path | None, nominal: str,
-         augmented: dict[int, str], common: list[str] = ()) -> list[ModelPlan]:
+         augmented: dict[int, str], common: list[str] = (),
+         warm_start: bool = True) -> list[ModelPlan]:
     """
     Return the models the workflow compares: the hybrid on each physics, the LSTM.
 
     ``augmented`` maps a fold's index to its augmented physics file (the nominal one
     where the diagnosis wrote none); ``common`` overrides every model's config.
+    ``warm_start``: the hybrid on the augmented physics starts from the recurrent layers
+    of the hybrid on the nominal physics of its fold and seed (its correction still
+    starts at zero): on the KVLCC2 folds the correction then learns what the better
+    physics leaves (docs/results/real/README.md, issue #23).
     """
     def physics(path: str) -> list[str]:
         return [*common, 'model.physical.kind=physics', f'model.physical.physics={path}']
 
     models = [ModelPlan(NOMINAL, hybrid_config, physics(nominal)),
-              ModelPlan(AUGMENTED, hybrid_config, lambda f: physics(augmented[f.index]))]
+              ModelPlan(AUGMENTED, hybrid_config, lambda f: physics(augmented[f.index]),
+                        start_from=NOMINAL if warm_start else None)]
     if lstm_config is not None:
         models.append(ModelPlan(LSTM, lstm_config, list(common)))
     return models

@@ -66,11 +66,17 @@ class Fold:
 
 @dataclass(frozen=True)
 class ModelPlan:
-    """A model to train on every fold: a config and its overrides (fixed, or per fold)."""
+    """
+    A model to train on every fold: a config and its overrides (fixed, or per fold).
+
+    ``start_from`` names another model of the plan whose training of the same fold and
+    seed starts this one's recurrent layers (``training.init_from``); it trains first.
+    """
 
     label: str
     config: Path
     overrides: Sequence[str] | Callable[[Fold], Sequence[str]] = field(default=())
+    start_from: str | None = None
 
     def overrides_for(self, fold: Fold) -> list[str]:
         """Return the config overrides of this model on ``fold``."""
@@ -262,18 +268,31 @@ def train_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequen
     are the members of the ensemble it packs (``ensemble_plan``).
     """
     per_job = max(1, threads // max(jobs, 1))
-    plan = [(f'{m.label}/fold{f.index}/seed{s}', m.config,
-             m.overrides_for(f) + [f'dataset={f.path.resolve()}', f'training.seed={s}',
-                                   f'training.threads={per_job}', 'training.members=1'],
-             run_dir(out, m.label, f, s))
-            for f in folds for m in models for s in seeds]
-    results = []
+    labels = {m.label for m in models}
+    unknown = [m.start_from for m in models if m.start_from and m.start_from not in labels]
+    if unknown:
+        raise ValueError(f'start_from {unknown[0]!r} is not a model of the plan')
+
+    def job(m: ModelPlan, f: Fold, s: int) -> tuple:
+        start = [] if m.start_from is None else [
+            f'training.init_from={run_dir(out, m.start_from, f, s) / MODEL_FILE}']
+        return (f'{m.label}/fold{f.index}/seed{s}', m.config,
+                m.overrides_for(f) + start + [f'dataset={f.path.resolve()}',
+                                              f'training.seed={s}',
+                                              f'training.threads={per_job}',
+                                              'training.members=1'],
+                run_dir(out, m.label, f, s))
+
+    # The models others start from train in the first wave, those others in the second.
+    waves = [[job(m, f, s) for f in folds for m in models for s in seeds
+              if (m.start_from is None) == first] for first in (True, False)]
+    total, results = sum(map(len, waves)), []
     with ThreadPoolExecutor(max(jobs, 1)) as pool:
-        for done, fut in enumerate(as_completed([pool.submit(train_job, *job)
-                                                 for job in plan]), 1):
-            res = fut.result()
-            results.append(res)
-            say(f"trained {done}/{len(plan)}: {res['label']} {res['status']}")
+        for wave in waves:
+            for fut in as_completed([pool.submit(train_job, *args) for args in wave]):
+                res = fut.result()
+                results.append(res)
+                say(f"trained {len(results)}/{total}: {res['label']} {res['status']}")
     return results
 
 
