@@ -1,6 +1,7 @@
 """vessel_bringup.processes.Children: a tool stops its children on SIGINT, however started."""
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -23,7 +24,7 @@ TOOL = textwrap.dedent("""
 
 def alive(pid: int) -> bool:
     try:
-        state = open(f'/proc/{pid}/stat').read().rsplit(')', 1)[1].split()[0]
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
     except OSError:
         return False
     return state != 'Z'
@@ -32,14 +33,11 @@ def alive(pid: int) -> bool:
 @pytest.mark.parametrize('inherited', ['default', 'ignored'])
 def test_sigint_stops_the_tool_and_its_child_even_when_it_started_ignored(inherited):
     # A background job of a non-interactive shell starts with SIGINT ignored, and
-    # Python then leaves it ignored: the tool must stop all the same.
-    def start_as_shell_would():
-        if inherited == 'ignored':
-            signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-    tool = subprocess.Popen([sys.executable, '-c', TOOL], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True,
-                            preexec_fn=start_as_shell_would)
+    # Python then leaves it ignored: the tool must stop all the same. The shell's trap
+    # ignores it before exec, as such a shell does.
+    trap = "trap '' INT; " if inherited == 'ignored' else ''
+    tool = subprocess.Popen(['sh', '-c', f'{trap}exec "$0" -c "$1"', sys.executable, TOOL],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         child = int(tool.stdout.readline())
         assert alive(child)
