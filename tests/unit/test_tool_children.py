@@ -36,18 +36,17 @@ def test_sigint_stops_the_tool_and_its_child_even_when_it_started_ignored(inheri
     # Python then leaves it ignored: the tool must stop all the same. The shell's trap
     # ignores it before exec, as such a shell does.
     trap = "trap '' INT; " if inherited == 'ignored' else ''
-    tool = subprocess.Popen(['sh', '-c', f'{trap}exec "$0" -c "$1"', sys.executable, TOOL],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        child = int(tool.stdout.readline())
-        assert alive(child)
-        os.kill(tool.pid, signal.SIGINT)
-        code = tool.wait(20)
-        assert code != 0 and 'KeyboardInterrupt' in tool.stderr.read()
-        deadline = time.monotonic() + 5
-        while alive(child) and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert not alive(child), 'the child outlived its tool'
-    finally:
-        tool.kill()
-        tool.wait()
+    with subprocess.Popen(['sh', '-c', f'{trap}exec "$0" -c "$1"', sys.executable, TOOL],
+                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as tool:
+        try:
+            child = int(tool.stdout.readline())
+            assert alive(child)
+            os.kill(tool.pid, signal.SIGINT)
+            code = tool.wait(20)
+            assert code != 0 and 'KeyboardInterrupt' in tool.stderr.read()
+            deadline = time.monotonic() + 5
+            while alive(child) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            assert not alive(child), 'the child outlived its tool'
+        finally:
+            tool.kill()
