@@ -88,10 +88,12 @@ def main(argv: list[str]) -> int:
     chosen = [f for f in folds if f.index in args.folds]
     if len(chosen) != len(set(args.folds)):
         parser.error(f'the study has folds {[f.index for f in folds]}')
+    others = []   # the study's hybrids not varied: their ensembles are compared (--ensemble)
     if args.models:
         unknown = sorted(set(args.models) - set(hybrids))
         if unknown:
             parser.error(f"{unknown} not among the study's hybrids {hybrids}")
+        others = [label for label in hybrids if label not in args.models]
         hybrids = [label for label in hybrids if label in args.models]
 
     def filled(fold, seed) -> list[str]:
@@ -137,6 +139,12 @@ def main(argv: list[str]) -> int:
                 for name, members in preds.items():
                     row[f'{label}: {name}'] = [at_horizon(p[mine], own, spec)
                                                for p in members]
+        for label in others if args.ensemble else ():
+            pred = predict(load_model(ensemble_path(args.study, label, fold))[0], windows)
+            for k, row in enumerate(fold_rows):
+                mine = windows.run_index == k
+                row[f'{label}: study ensemble'] = [at_horizon(pred[mine],
+                                                              windows.subset(mine), spec)]
         rows += fold_rows
     keys = [k for k in rows[0] if ':' in k]
     for key in keys:
@@ -159,7 +167,10 @@ def main(argv: list[str]) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'variant.json').write_text(json.dumps(
         {'overrides': args.overrides, 'folds': args.folds, 'seeds': args.seeds,
-         'pooled': {k: pooled(rows, k) for k in keys}, 'harms_vs_physics': harm,
+         'pooled': {k: pooled(rows, k) for k in keys},
+         'per_fold': {f.index: {k: pooled([r for r in rows if r['fold'] == f.index], k)[0]
+                                for k in keys} for f in chosen},
+         'harms_vs_physics': harm,
          'runs': rows}, indent=1))
     return 0
 

@@ -101,7 +101,7 @@ run python docs/results/real/analysis/physics_drift.py "$WORK/kvlcc2_cv5_ensembl
 #    on the nominal physics of its fold and seed (training.init_from; what the workflow
 #    does by default since 2026-11-27, --cold-start as before), step 11's folds, 5 seeds.
 run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5_ensemble" \
-  "$WORK/kvlcc2_cv5_warm" --folds 0 1 2 3 4 --seeds 0 1 2 3 4 \
+  "$WORK/kvlcc2_cv5_warm" --folds 0 1 2 3 4 --seeds 0 1 2 3 4 --ensemble \
   --models "hybrid on augmented physics" \
   --set 'training.init_from={study}/runs/hybrid_on_nominal_physics/fold{fold}/seed{seed}/model.safetensors' \
   > /dev/null
