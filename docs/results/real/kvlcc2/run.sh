@@ -108,7 +108,11 @@ run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5_e
 mkdir -p "$OUT/cv5_ensemble/variant_warm"
 cp "$WORK/kvlcc2_cv5_warm/variant.json" "$OUT/cv5_ensemble/variant_warm/"
 sed -i "s#$WORK/#\$WORK/#g" "$OUT/cv5_ensemble/variant_warm/variant.json"
-for study in heldout cv5 hyd cv5_by_samples cv5_ensemble; do
+# 15. The workflow on the held-out split again, as step 4 but with the warm start (its
+#    default since 2026-11-27), the two MMG hybrids with five seeds (no LSTM).
+run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_heldout_warm" \
+  --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 > /dev/null
+for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
     "$OUT/$study/"
