@@ -21,7 +21,6 @@ at the end, and 20 samples in between (growth that levels off, or keeps on).
 from __future__ import annotations
 
 from dataclasses import dataclass
-import math
 from pathlib import Path
 import threading
 import time
@@ -91,10 +90,11 @@ def rss_mb(pid: int) -> float:
 def make_plans(count: int, period: float = 0.0, seed: int = 0):
     """Return ``count`` ControlPlans of steady shaft and rudder, rows of ``period`` s."""
     from hybrid_predictor.plan_message import control_plan
+    from hybrid_predictor.plans import plan_length
     from vessel_description import load_vessel
 
     boat = load_vessel('patrol_boat')
-    rows = HORIZON if period == 0 else math.ceil(HORIZON * boat.dt / period - 1e-9)
+    _, rows = plan_length(HORIZON, period, boat.dt, '--plan-period')
     rng = np.random.default_rng(seed)
     plans = []
     for _ in range(count):
@@ -110,7 +110,6 @@ class Load:
     def __init__(self, node, clients: int, concurrency: int, shape: RequestShape,
                  busy_backoff: float):
         from rclpy.qos import QoSProfile
-        from rclpy.serialization import serialize_message
 
         from hybrid_predictor_interfaces.srv import Predict
 
@@ -120,8 +119,6 @@ class Load:
                         for _ in range(clients)]
         self.request = Predict.Request(plans=make_plans(shape.plans, shape.plan_period),
                                        answer_period=shape.answer_period)
-        self.size_of = serialize_message   # bytes of a message as it crosses DDS
-        self.request_bytes = len(serialize_message(self.request))
         self.concurrency = concurrency
         self.lock = threading.Lock()
         self.sent = self.success = self.busy = self.failed = 0
@@ -130,7 +127,7 @@ class Load:
         self.busy_latencies: list[float] = []
         self.failures: dict[str, int] = {}
         self.deadline = 0.0
-        self.answer_kb = None   # the size of a successful answer, measured once
+        self.first_success = None   # a successful answer, kept to give its size
 
     def begin(self, seconds: float) -> None:
         """Start every client's requests; new ones are sent for ``seconds``."""
@@ -149,14 +146,13 @@ class Load:
     def _answered(self, client, future, sent_at: float) -> None:
         response = future.result()
         busy = not response.success and response.message.startswith('busy')
-        measure = False
         with self.lock:
             self.latencies.append(time.monotonic() - sent_at)
             if response.success:
                 self.success += 1
                 self.success_latencies.append(time.monotonic() - sent_at)
-                measure = self.answer_kb is None
-                self.answer_kb = self.answer_kb or 0.0
+                if self.first_success is None:
+                    self.first_success = response
             elif busy:
                 self.busy += 1
                 self.busy_latencies.append(time.monotonic() - sent_at)
@@ -164,14 +160,19 @@ class Load:
                 self.failed += 1
                 key = response.message[:60]
                 self.failures[key] = self.failures.get(key, 0) + 1
-        if response.success and measure:
-            self.answer_kb = round(len(self.size_of(response)) / 1e3, 1)
         if time.monotonic() >= self.deadline:
             return
         if busy and self.busy_backoff > 0:
             threading.Timer(self.busy_backoff, self._send, [client]).start()
         else:
             self._send(client)
+
+    @staticmethod
+    def kb(message) -> float | None:
+        """Return a message's size as it crosses DDS (kB, serialized); None for none."""
+        from rclpy.serialization import serialize_message
+
+        return None if message is None else round(len(serialize_message(message)) / 1e3, 1)
 
     @property
     def answered(self) -> int:
@@ -269,8 +270,8 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'duration_s': round(ended - started, 1),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': shape.plans,
         'plan_period_s': shape.plan_period, 'answer_period_s': shape.answer_period,
-        'request_kb': round(load.request_bytes / 1e3, 1),
-        'success_answer_kb': load.answer_kb,
+        'request_kb': load.kb(load.request),
+        'success_answer_kb': load.kb(load.first_success),
         'simulator_rtf': rtf, 'busy_backoff_s': busy_backoff,
         'requests_sent': load.sent,
         'requests_answered': load.answered,

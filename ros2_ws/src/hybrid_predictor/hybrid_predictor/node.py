@@ -69,7 +69,7 @@ from hybrid_predictor.plans import (
     answer_steps,
     answer_stride,
     bound_hit_fraction,
-    check_plan,
+    check_plan_message,
     hold_latest,
     plan_controls,
     plan_rows,
@@ -398,8 +398,7 @@ class PredictorNode(Node):
 
     def _on_plan(self, msg: ControlPlan) -> None:
         try:
-            matrix = check_plan(*plan_fields(msg), self.horizon, self.limits, exact=False,
-                                step_period=msg.step_period)
+            matrix = check_plan_message(msg, self.horizon, self.limits, exact=False)
         except PlanError as exc:
             with self.count_lock:
                 self.counts['plans_rejected'] += 1
@@ -653,8 +652,7 @@ class PredictorNode(Node):
             return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', []
         try:   # every plan, as a whole, before any window or model work
             stride = answer_stride(answer_period, self.spec.dt, self.horizon)
-            matrices = [check_plan(*plan_fields(plan), self.horizon, self.limits, index=i,
-                                   step_period=plan.step_period)
+            matrices = [check_plan_message(plan, self.horizon, self.limits, index=i)
                         for i, plan in enumerate(plans)]
         except PlanError as exc:
             return False, str(exc), []
@@ -771,11 +769,6 @@ def doubles(values) -> array:
     out = array('d')
     out.frombytes(np.ascontiguousarray(values, dtype=np.float64).tobytes())
     return out
-
-
-def plan_fields(plan: ControlPlan) -> tuple[list, list, np.ndarray]:
-    """Return a ControlPlan's column names, units and values (``plans.check_plan``'s)."""
-    return list(plan.control_names), list(plan.control_units), np.asarray(plan.values)
 
 
 def followed(plan: ControlPlan) -> Assumed:

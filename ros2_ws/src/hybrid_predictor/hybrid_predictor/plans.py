@@ -110,6 +110,18 @@ def steps_per_period(period: float, dt: float, what: str) -> int:
     return steps
 
 
+def plan_length(horizon: int, step_period: float, dt: float, what: str = 'step_period'
+                ) -> tuple[int, int]:
+    """
+    Return (forecast steps a row holds, rows a plan needs) for ``horizon`` steps of ``dt`` s.
+
+    Rows of ``step_period`` s (0: one a step; ``steps_per_period`` checks it, naming
+    ``what``); the last row may reach past the horizon.
+    """
+    hold = steps_per_period(step_period, dt, what)
+    return hold, -(-horizon // hold)
+
+
 def answer_stride(answer_period: float, dt: float, horizon: int) -> int:
     """
     Return the stride of a what-if answer's steps (``Predict`` request's answer_period).
@@ -145,7 +157,7 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
     (``index``) and what is wrong.
     """
     where = f'plan {index}'
-    hold = steps_per_period(step_period, limits.dt, f'{where}: step_period')
+    hold, needed = plan_length(horizon, step_period, limits.dt, f'{where}: step_period')
     names, units = [str(n) for n in names], [str(u) for u in units]
     if not names:
         raise PlanError(f'{where}: no control_names; vessel {limits.vessel!r} takes '
@@ -182,7 +194,7 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
         raise PlanError(f'{where}: {len(flat)} values are not whole rows of '
                         f'{len(names)} controls')
     rows = flat.reshape(-1, len(names))
-    steps, needed = len(rows), -(-horizon // hold)
+    steps = len(rows)
     if steps != needed if exact else steps < needed:
         need = needed if exact else f'at least {needed}'
         if hold == 1:
@@ -217,6 +229,18 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
                                 f'{s[k]:.6g}) is not a unit direction')
     matrix = np.repeat(matrix, hold, axis=0)   # one row per forecast step
     return matrix[:horizon] if exact else matrix
+
+
+def check_plan_message(plan, horizon: int, limits: PlanLimits, index: int = 0,
+                       exact: bool = True) -> np.ndarray:
+    """
+    Return ``check_plan``'s matrix of a ControlPlan message (or a recorded one).
+
+    A plan recorded before plans had a step period has one row per forecast step.
+    """
+    return check_plan(list(plan.control_names), list(plan.control_units),
+                      np.asarray(plan.values), horizon, limits, index=index, exact=exact,
+                      step_period=getattr(plan, 'step_period', 0.0))
 
 
 def plan_rows(matrix: np.ndarray, plan_start: float, t_end: float, dt: float,

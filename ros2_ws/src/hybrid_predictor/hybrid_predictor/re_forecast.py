@@ -37,7 +37,14 @@ from vessel_ros_bridge.messages import seconds_from_stamp
 
 from .held_wind import forecast_holding_wind, holds_wind
 from .input_window import InputWindow
-from .plans import PlanLimits, check_plan, hold_latest, plan_controls, plan_rows, track
+from .plans import (
+    PlanLimits,
+    check_plan_message,
+    hold_latest,
+    plan_controls,
+    plan_rows,
+    track,
+)
 
 # Live minus offline, relative to each state's largest magnitude in the forecast (plus
 # 1e-3 so a state near zero is not judged on its rounding alone): float32 carries ~7
@@ -151,10 +158,7 @@ class ReForecast:
         if plan is None:
             raise ReForecastError(f'the plan it followed (stamp {key[0]:.3f} s, id '
                                   f'{key[1]!r}) was not kept')
-        # A plan recorded before plans had a step period has one row per step.
-        matrix = check_plan(list(plan.control_names), list(plan.control_units),
-                            np.asarray(plan.values), horizon, self.limits, exact=False,
-                            step_period=getattr(plan, 'step_period', 0.0))
+        matrix = check_plan_message(plan, horizon, self.limits, exact=False)
         rows, why = plan_rows(matrix, key[0], result.t_end, self.spec.dt, horizon, math.inf)
         if rows is None:
             raise ReForecastError(f'its plan does not cover it: {why or "starts later"}')
