@@ -12,7 +12,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
-import signal
 import subprocess
 import sys
 import threading
@@ -20,6 +19,7 @@ import time
 import warnings
 
 import pytest
+from vessel_bringup.processes import restore_sigint
 
 REPO = Path(__file__).resolve().parents[2]
 INSTALL = REPO / 'ros2_ws' / 'install'
@@ -43,8 +43,7 @@ os.environ['FASTRTPS_DEFAULT_PROFILES_FILE'] = str(TEST_PROCESS_PROFILE)
 # outlived its SIGINT by the whole 10 s stop step, and the demo ignored the SIGINT its
 # stop test sent and ran its 17 simulated minutes (48 s). The processes are started as
 # from a terminal: SIGINT at its default here, which a child then starts with.
-if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.SIG_DFL):
-    signal.signal(signal.SIGINT, signal.default_int_handler)
+restore_sigint()
 
 
 def child_environment(**extra: str) -> dict:

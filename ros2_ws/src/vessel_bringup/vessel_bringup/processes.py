@@ -93,6 +93,20 @@ def stop_group(process: subprocess.Popen, leader_first: bool = False,
         return None
 
 
+def restore_sigint():
+    """
+    Make SIGINT raise KeyboardInterrupt where the process started with it ignored.
+
+    A process started with SIGINT ignored (a background job of a non-interactive shell,
+    a test runner's worker) keeps it ignored, and Python then raises no
+    KeyboardInterrupt; processes it starts inherit that. Return the handler replaced,
+    or None when SIGINT was left as it was. Main thread only (ValueError elsewhere).
+    """
+    if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.SIG_DFL):
+        return signal.signal(signal.SIGINT, signal.default_int_handler)
+    return None
+
+
 def _exit_on_signal(signum, _frame):
     raise SystemExit(128 + signum)
 
@@ -150,13 +164,11 @@ class Children:
         for sig in EXIT_SIGNALS:
             with contextlib.suppress(ValueError):   # not the main thread: leave as is
                 self._old_handlers[sig] = signal.signal(sig, _exit_on_signal)
-        # A process started with SIGINT ignored (a background job of a non-interactive
-        # shell, a test runner's worker) keeps it ignored, and Python then raises no
-        # KeyboardInterrupt: a tool that says it stops on SIGINT must restore it.
+        # A tool that says it stops on SIGINT must, however it was started.
         with contextlib.suppress(ValueError):
-            if signal.getsignal(signal.SIGINT) in (signal.SIG_IGN, signal.SIG_DFL):
-                self._old_handlers[signal.SIGINT] = signal.signal(
-                    signal.SIGINT, signal.default_int_handler)
+            replaced = restore_sigint()
+            if replaced is not None:
+                self._old_handlers[signal.SIGINT] = replaced
         return self
 
     def __exit__(self, *exc) -> None:
