@@ -15,6 +15,8 @@ import time
 
 import pytest
 
+from tests.processes import running
+
 from .conftest import REPO, wait_for
 
 pytestmark = pytest.mark.ros
@@ -51,15 +53,6 @@ def node_children(pid: int) -> list[int]:
         if ppid == pid and any(n in cmdline for n in NODES):
             out.append(int(entry.name))
     return out
-
-
-def running(pid: int) -> bool:
-    """Whether a process exists and is not a zombie."""
-    try:
-        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != 'Z'
 
 
 def stop_and_check(launcher, tmp_path, tool: str, sig: int, nodes: int) -> None:

@@ -1,14 +1,14 @@
 """vessel_bringup.processes.Children: a tool stops its children on SIGINT, however started."""
 
 import os
-from pathlib import Path
 import signal
 import subprocess
 import sys
 import textwrap
-import time
 
 import pytest
+
+from tests.processes import gone_within, running
 
 # A tool: starts one child (a long sleep) and waits; prints the child's pid.
 TOOL = textwrap.dedent("""
@@ -22,14 +22,6 @@ TOOL = textwrap.dedent("""
 """)
 
 
-def alive(pid: int) -> bool:
-    try:
-        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != 'Z'
-
-
 @pytest.mark.parametrize('inherited', ['default', 'ignored'])
 def test_sigint_stops_the_tool_and_its_child_even_when_it_started_ignored(inherited):
     # A background job of a non-interactive shell starts with SIGINT ignored, and
@@ -40,13 +32,10 @@ def test_sigint_stops_the_tool_and_its_child_even_when_it_started_ignored(inheri
                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) as tool:
         try:
             child = int(tool.stdout.readline())
-            assert alive(child)
+            assert running(child)
             os.kill(tool.pid, signal.SIGINT)
             code = tool.wait(20)
             assert code != 0 and 'KeyboardInterrupt' in tool.stderr.read()
-            deadline = time.monotonic() + 5
-            while alive(child) and time.monotonic() < deadline:
-                time.sleep(0.05)
-            assert not alive(child), 'the child outlived its tool'
+            assert gone_within(child, 5), 'the child outlived its tool'
         finally:
             tool.kill()

@@ -13,6 +13,7 @@ from safetensors.torch import load_file
 from hybrid_models.checkpoint import CheckpointError, read_header
 from hybrid_models.toy import write_toy_dataset
 from hybrid_models.training import load_config, train
+from tests.processes import gone_within
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
@@ -111,7 +112,6 @@ def test_a_training_subprocess_ends_when_the_tool_that_started_it_is_killed(tmp_
     import signal
     import subprocess
     import sys
-    import time
 
     # A stand-in tool starts a training the way train_job does, then is killed; the
     # stand-in training makes the call the train program makes first, then waits.
@@ -131,20 +131,7 @@ def test_a_training_subprocess_ends_when_the_tool_that_started_it_is_killed(tmp_
     assert tool.stdout.readline().strip() == 'ready'   # its call is made: the tool dies
     tool.send_signal(signal.SIGKILL)
     tool.wait()
-    deadline = time.monotonic() + 10
-    while time.monotonic() < deadline:
-        try:
-            os.kill(child, 0)
-        except ProcessLookupError:
-            break
-        # A child that died but was not yet reaped by init counts as gone.
-        try:
-            with open(f'/proc/{child}/stat') as stat:
-                if stat.read().split()[2] == 'Z':
-                    break
-        except FileNotFoundError:
-            break
-        time.sleep(0.05)
-    else:
+    # A child that died but was not yet reaped by init counts as gone.
+    if not gone_within(child, 10):
         os.kill(child, signal.SIGKILL)
         raise AssertionError('the training child outlived the tool that started it')
