@@ -61,6 +61,13 @@ def pooled(rows: list[dict], key: str) -> tuple[float, float]:
     return pooled_over_runs([r[key] for r in rows], [r['forecasts'] for r in rows])
 
 
+def per_run(fold_rows: list[dict], windows, key: str, members: list, spec) -> None:
+    """Write each run's position error at the horizon's end of ``members`` into its row."""
+    for k, row in enumerate(fold_rows):
+        mine = windows.run_index == k
+        row[key] = [at_horizon(p[mine], windows.subset(mine), spec) for p in members]
+
+
 def variant_dir(out: Path, label: str, fold, seed: int) -> Path:
     """Return where the variant of ``label``'s model of ``fold`` and ``seed`` is trained."""
     return out / label.replace(' ', '_') / f'fold{fold.index}' / f'seed{seed}'
@@ -133,18 +140,11 @@ def main(argv: list[str]) -> int:
                 preds['variant ensemble'] = [predict(load_model(packed)[0], windows)]
             for name, members in preds.items():
                 pooled_preds.setdefault(f'{label}: {name}', []).append(members)
-            for k, row in enumerate(fold_rows):
-                mine = windows.run_index == k
-                own = windows.subset(mine)
-                for name, members in preds.items():
-                    row[f'{label}: {name}'] = [at_horizon(p[mine], own, spec)
-                                               for p in members]
+            for name, members in preds.items():
+                per_run(fold_rows, windows, f'{label}: {name}', members, spec)
         for label in others if args.ensemble else ():
             pred = predict(load_model(ensemble_path(args.study, label, fold))[0], windows)
-            for k, row in enumerate(fold_rows):
-                mine = windows.run_index == k
-                row[f'{label}: study ensemble'] = [at_horizon(pred[mine],
-                                                              windows.subset(mine), spec)]
+            per_run(fold_rows, windows, f'{label}: study ensemble', [pred], spec)
         rows += fold_rows
     keys = [k for k in rows[0] if ':' in k]
     for key in keys:
