@@ -61,24 +61,24 @@ def test_a_hybrid_starts_from_another_hybrids_recurrent_layers(toy, tmp_path):
     import torch
 
     from hybrid_models.models import build_model
-    from hybrid_models.training.train import warm_start
+    from hybrid_models.training.train import WARM_START_LAYERS, warm_start
 
-    short = ['training.phases=[{kind: teacher, max_epochs: 1, patience: 1, lr: 0.005}]']
-    cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'] + short)
+    short = [f'dataset={toy}', 'training.progress=false',
+             'training.phases=[{kind: teacher, max_epochs: 1, patience: 1, lr: 0.005}]']
+    cfg = load_config(SMOKE, short)
     train(cfg, tmp_path / 'first')
     first, _ = load_model(tmp_path / 'first' / 'model.safetensors')
     fresh = build_model(cfg['model'], first.spec)
     copied = warm_start(fresh, tmp_path / 'first' / 'model.safetensors')
     assert copied['layers'] == ['init', 'lstm'] and copied['tensors'] > 0
     for name, tensor in fresh.state_dict().items():
-        if name.startswith(('init.', 'lstm.')):
+        if name.startswith(WARM_START_LAYERS):
             assert torch.equal(tensor, first.state_dict()[name]), name
     # The head is the new model's own: zero, so training starts from its physics.
     assert not fresh.head.weight.any() and not fresh.head.bias.any()
     # Trained with it, the checkpoint says so; a hybrid of another size is refused.
-    summary = train(load_config(SMOKE, [f'dataset={toy}', 'training.progress=false', *short,
-                                        f'training.init_from={tmp_path}/first/model.safetensors'
-                                        ]), tmp_path / 'second')
+    summary = train(load_config(SMOKE, [
+        *short, f'training.init_from={tmp_path}/first/model.safetensors']), tmp_path / 'second')
     assert summary['init_from']['path'].endswith('first/model.safetensors')
     other = build_model({**cfg['model'], 'hidden': cfg['model']['hidden'] + 1}, first.spec)
     with pytest.raises(ValueError, match='is not a hybrid of this size'):
