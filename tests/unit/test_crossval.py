@@ -85,6 +85,20 @@ def test_crossval_trains_every_seed_and_fold_and_pools_their_forecasts(toy, tmp_
     assert crossval.main(args + sum((['--set', s] for s in SHORT), [])) == 0
     trained = json.loads((out / 'results.json').read_text())['trainings']
     assert {t['status'] for t in trained} == {'kept'}
+    # A call with more seeds trains only the new ones and packs the ensembles again
+    # (a finished ensemble of the former seeds is not kept under the new label).
+    more = args.copy()
+    more[more.index('--seeds') + 1] = '3'
+    assert crossval.main(more + sum((['--set', s] for s in SHORT), [])) == 0
+    result = json.loads((out / 'results.json').read_text())
+    assert sorted((t['label'], t['status']) for t in result['trainings']) == sorted(
+        [(f'hybrid/fold{f}/seed{s}', 'kept') for f in (0, 1) for s in (0, 1)]
+        + [(f'hybrid/fold{f}/seed2', 'ok') for f in (0, 1)])
+    assert result['rows'][1]['label'] == 'hybrid, ensemble of 3 seeds'
+    for fold in (0, 1):
+        model, config = load_model(out / 'runs' / 'hybrid' / f'fold{fold}' / 'ensemble' /
+                                   'model.safetensors')
+        assert len(model.members) == 3 and config['ensemble']['seeds'] == [0, 1, 2]
 
 
 def physics_file(tmp_path, name, terms):

@@ -31,7 +31,7 @@ import sys
 import numpy as np
 
 from hybrid_models import report
-from hybrid_models.checkpoint import load_model
+from hybrid_models.checkpoint import CheckpointError, load_model, read_header
 from hybrid_models.cross_bands import HeldOut
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.ensemble import is_hybrid
@@ -208,13 +208,23 @@ def ensemble_label(label: str, seeds: Sequence[int]) -> str:
     return f'{label}, ensemble of {len(seeds)} seeds'
 
 
+def packed_from(ensemble: Path, members: Sequence[Path]) -> bool:
+    """Tell whether ``ensemble`` is a finished ensemble of exactly ``members``."""
+    try:
+        header = read_header(ensemble)
+    except (CheckpointError, FileNotFoundError):
+        return False
+    return (header.get('ensemble') or {}).get('members') == [str(p) for p in members]
+
+
 def ensemble_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Sequence[int],
                   out: Path, say: Callable[[str], None] = lambda m: print(m, file=sys.stderr)
                   ) -> list[str]:
     """
     Pack every hybrid's seeds of each fold into its ensemble; return the models packed.
 
-    A finished ensemble is kept (a second call resumes); models that are not hybrids
+    A finished ensemble of the same members is kept (a second call resumes); one of
+    other members (a call with more seeds) is packed again. Models that are not hybrids
     have none.
     """
     packed = []
@@ -223,10 +233,10 @@ def ensemble_plan(models: Sequence[ModelPlan], folds: Sequence[Fold], seeds: Seq
             continue
         for f in folds:
             target = ensemble_path(out, m.label, f)
-            if not target.is_file():
+            members = [run_dir(out, m.label, f, s) / MODEL_FILE for s in seeds]
+            if not packed_from(target, members):
                 target.parent.mkdir(parents=True, exist_ok=True)
-                serve_ensemble([run_dir(out, m.label, f, s) / MODEL_FILE for s in seeds],
-                               f.path, target)
+                serve_ensemble(members, f.path, target)
             say(f'ensemble of {len(seeds)} seeds: {m.label}/fold{f.index}')
         packed.append(m.label)
     return packed
