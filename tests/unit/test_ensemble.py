@@ -5,11 +5,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+import yaml
 
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
 from hybrid_models.ensemble import EnsembleError, EnsembleHybrid, pack
+from hybrid_models.evaluation import physics_identity
 from hybrid_models.models import build_model, predict
 from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
 from hybrid_models.training import load_config, train
@@ -70,6 +72,29 @@ def test_members_that_cannot_be_served_together_are_refused_in_one_line():
     lstm = build_model({'kind': 'lstm', 'hidden': 8, 'layers': 1}, TOY_VESSEL)
     with pytest.raises(EnsembleError, match='member 1 is a LSTMBaseline, not a hybrid'):
         pack([hybrid(1), lstm])
+
+
+def test_one_physics_read_from_two_folders_is_one_physics(tmp_path):
+    from vessel_description import load_vessel
+    from vessel_physics.patrol import PRO_TERMS, SIMULATOR_TERMS
+
+    ship = load_vessel('patrol_boat')
+
+    def on_file(folder, terms, seed):
+        path = tmp_path / folder / 'physics.yaml'
+        path.parent.mkdir(exist_ok=True)
+        path.write_text(yaml.safe_dump({'format': 'vessel-physics/1', 'terms': list(terms),
+                                        'vessel': 'nominal_vessel.yaml'}))
+        torch.manual_seed(seed)
+        return build_model({'kind': 'hybrid', 'hidden': 8, 'layers': 1, 'dropout': 0.0,
+                            'physical': {'kind': 'physics', 'physics': str(path)}}, ship)
+
+    # A study's seeds trained before and after its folder was copied: one physics.
+    before, after = on_file('study', PRO_TERMS, 1), on_file('copy', PRO_TERMS, 2)
+    assert physics_identity(before.physical) == physics_identity(after.physical)
+    assert len(pack([before, after]).members) == 2
+    with pytest.raises(EnsembleError, match='member 1 corrects another physics'):
+        pack([on_file('study', PRO_TERMS, 1), on_file('other', SIMULATOR_TERMS, 2)])
 
 
 @pytest.fixture(scope='module')

@@ -124,6 +124,21 @@ class EnsembleHybrid(nn.Module):
                 'relative_threshold': self.relative_threshold}
 
 
+def architecture(model: HybridModel) -> dict:
+    """
+    Return what members must share to be served as one: the model's construction.
+
+    Without the served threshold (the ensemble chooses its own) and without the physics:
+    that is compared by its fingerprint, not by the path its file was read from (one
+    physics copied to another folder is the same physics).
+    """
+    arch = {k: v for k, v in model.describe().items() if k != 'relative_threshold'}
+    if isinstance(arch.get('physical'), dict):
+        arch['physical'] = {k: v for k, v in arch['physical'].items()
+                            if k not in ('physics_source', 'physics')}
+    return arch
+
+
 def pack(members: Sequence[HybridModel]) -> EnsembleHybrid:
     """
     Return the ensemble of trained hybrids, checked to be servable together.
@@ -146,8 +161,7 @@ def pack(members: Sequence[HybridModel]) -> EnsembleHybrid:
     physics = physics_identity(first.physical)
     for i, m in enumerate(members[1:], start=1):
         m.spec.check_compatible(first.spec, f'member 0 of the ensemble (member {i})')
-        arch = ({k: v for k, v in m.describe().items() if k != 'relative_threshold'},
-                {k: v for k, v in first.describe().items() if k != 'relative_threshold'})
+        arch = (architecture(m), architecture(first))
         if arch[0] != arch[1]:
             raise EnsembleError(f'member {i} has another architecture than member 0: '
                                 f'{arch[0]} against {arch[1]}')

@@ -132,16 +132,31 @@ def residual_share(model: HybridModel, windows: Windows) -> dict:
     return out
 
 
+SOURCE_KEYS = ('physics_source', 'params')   # where a physical part's file was read from
+
+
+def without_sources(described):
+    """Return a physical part's description without the paths of the files it read."""
+    if isinstance(described, dict):
+        return {k: without_sources(v) for k, v in described.items()
+                if not (k in SOURCE_KEYS and isinstance(v, str))}
+    if isinstance(described, list):
+        return [without_sources(v) for v in described]
+    return described
+
+
 def physics_identity(physical) -> tuple[str, str]:
     """
     Return (fingerprint, name) of a hybrid's physical part (a ``nets.PhysicalModule``).
 
     Equal fingerprints mean equal forecasts: the description and every learned value
-    agree. The name says the kind and the file it came from, e.g. 'mmg physics
+    agree, wherever the files were read from (a study copied to another folder keeps its
+    physics). The name says the kind and the file it came from, e.g. 'mmg physics
     (augmented_mmg)'; a regression's is its kind alone ('hyd physics').
     """
     described = physical.describe()
-    digest = hashlib.sha256(json.dumps(described, sort_keys=True, default=str).encode())
+    digest = hashlib.sha256(json.dumps(without_sources(described), sort_keys=True,
+                                       default=str).encode())
     for key, value in sorted(physical.numpy_model().arrays().items()):
         digest.update(key.encode())
         digest.update(np.ascontiguousarray(value).tobytes())
