@@ -21,6 +21,32 @@ def physics_file(path: Path, terms) -> Path:
     return path
 
 
+def test_the_diagnosis_of_a_fold_fits_its_training_runs_alone(tmp_path):
+    from hybrid_models.studies.crossval import make_folds
+    from vessel_diagnosis.recordings import load_recordings, split_holdout
+    from vessel_diagnosis.workflow import diagnose_fold
+
+    toy = read_dataset(write_toy_dataset(tmp_path / 'toy', n_runs=6, n_samples=260))
+    fitted = {}
+
+    def diagnose(argv):
+        """Split the fold's view as the diagnosis does; note what it would fit and judge."""
+        runs = load_recordings([argv[argv.index('--recordings') + 1]])
+        diag, held, how = split_holdout(runs, 0.3, 0)
+        fitted[len(fitted)] = ({r.run_id for r in diag}, {r.run_id for r in held}, how)
+        return 0
+
+    folds = make_folds(toy, tmp_path / 'folds', 3)
+    for fold in folds:
+        diagnose_fold(toy, fold, None, tmp_path / f'fold{fold.index}', diagnose)
+        diag, held, how = fitted[fold.index]
+        # The view holds every run; the fold's test runs are in it, marked unused.
+        assert set(read_dataset(tmp_path / f'fold{fold.index}' / 'view').run_ids()) >= set(
+            fold.test)
+        assert diag == set(fold.train) and held == set(fold.val)
+        assert not diag & set(fold.test) and how == 'the dataset test split'
+
+
 def test_each_fold_is_diagnosed_without_its_test_runs_and_its_physics_retrained(
         tmp_path, monkeypatch):
     toy = write_toy_dataset(tmp_path / 'toy', n_runs=6, n_samples=260)

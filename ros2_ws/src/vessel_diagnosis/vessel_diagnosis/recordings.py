@@ -182,13 +182,16 @@ def split_holdout(runs: Sequence[Run], fraction: float, seed: int
     """
     Return (diagnosis runs, held-out runs, how they were chosen).
 
-    A dataset's own test split is used when it has test runs and others; otherwise a
-    seeded share ``fraction`` of the runs is held out, and with a single run its last
-    ``fraction`` of samples.
+    A dataset's own test split is used when it has test runs and training or validation
+    runs: those are diagnosed, and runs its split leaves unused are not (a fold's view
+    marks the fold's test runs so: fitting on them would leak them into the physics).
+    Otherwise a seeded share ``fraction`` of the runs is held out, and with a single run
+    its last ``fraction`` of samples.
     """
     test = [r for r in runs if r.split == 'test']
-    if test and len(test) < len(runs):
-        return [r for r in runs if r.split != 'test'], test, 'the dataset test split'
+    fitted = [r for r in runs if r.split in ('train', 'val')]
+    if test and fitted:
+        return fitted, test, 'the dataset test split'
     if len(runs) >= 2:
         split = split_runs([r.run_id for r in runs], seed, (1.0 - fraction, 0.0, fraction))
         held = set(split['test'])
