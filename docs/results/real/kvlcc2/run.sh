@@ -112,6 +112,10 @@ sed -i "s#$WORK/#\$WORK/#g" "$OUT/cv5_ensemble/variant_warm/variant.json"
 #    default since 2026-11-27), the two MMG hybrids with five seeds (no LSTM).
 run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_heldout_warm" \
   --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 > /dev/null
+#     Its two hybrids seed by seed (paired: an order, or a tie).
+mkdir -p "$OUT/heldout_warm"
+run python docs/results/real/analysis/paired_seeds.py "$WORK/kvlcc2_heldout_warm" \
+  "$OUT/heldout_warm" > /dev/null
 for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
