@@ -116,7 +116,22 @@ run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_h
 mkdir -p "$OUT/heldout_warm"
 run python docs/results/real/analysis/paired_seeds.py "$WORK/kvlcc2_heldout_warm" \
   "$OUT/heldout_warm" > /dev/null
-for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm; do
+# 16. Step 11 again with the diagnosis fitted on each fold's training runs alone (the fix
+#     of 2026-11-27; before it, each fold's augmented physics also saw the fold's test
+#     runs) and the warm start: the same folds and five seeds; the nominal hybrids do not
+#     depend on the diagnosis and are step 11's trainings, copied in and kept.
+noleak="$WORK/kvlcc2_cv5_noleak"
+if [ ! -d "$noleak/runs" ]; then
+  mkdir -p "$noleak/runs"
+  cp -r "$WORK/kvlcc2_cv5_ensemble/folds" "$noleak/"
+  rm -rf "$noleak"/folds/*/diagnosis "$noleak"/folds/*/view
+  cp -r "$WORK/kvlcc2_cv5_ensemble/runs/hybrid_on_nominal_physics" "$noleak/runs/"
+fi
+run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$noleak" \
+  --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 --folds 5 > /dev/null
+mkdir -p "$OUT/cv5_noleak"
+run python docs/results/real/analysis/paired_seeds.py "$noleak" "$OUT/cv5_noleak" > /dev/null
+for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm cv5_noleak; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
     "$OUT/$study/"
