@@ -77,9 +77,10 @@ def main(argv: list[str]) -> int:
     for name, c in result.items():
         pairs = ', '.join(f'{a:.2f} / {b:.2f}' for a, b in zip(c['first'], c['second'],
                                                                  strict=True))
+        se, p = c['standard_error'], c['t_test_p']   # None with a single seed
         lines.append(f"| {name} | {pairs} | {c['first_ahead']} of {c['seeds']} | "
-                     f"{c['mean_difference']:+.3f} ± {c['standard_error']:.3f} | "
-                     f"{c['t_test_p']:.2f} | {c['sign_test_p']:.2f} |")
+                     f"{c['mean_difference']:+.3f} ± {'–' if se is None else f'{se:.3f}'} | "
+                     f"{'–' if p is None else f'{p:.2f}'} | {c['sign_test_p']:.2f} |")
     text = '\n'.join(lines) + '\n'
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / 'paired.json').write_text(json.dumps(result, indent=2))

@@ -128,15 +128,13 @@ def architecture(model: HybridModel) -> dict:
     """
     Return what members must share to be served as one: the model's construction.
 
-    Without the served threshold (the ensemble chooses its own) and without the physics:
-    that is compared by its fingerprint, not by the path its file was read from (one
-    physics copied to another folder is the same physics).
+    Without the served threshold (the ensemble chooses its own) and without the physical
+    part: ``physics_identity`` compares that whole, by its description and learned
+    values, not by the paths its files were read from (one physics copied to another
+    folder is the same physics, of any physical kind).
     """
-    arch = {k: v for k, v in model.describe().items() if k != 'relative_threshold'}
-    if isinstance(arch.get('physical'), dict):
-        arch['physical'] = {k: v for k, v in arch['physical'].items()
-                            if k not in ('physics_source', 'physics')}
-    return arch
+    return {k: v for k, v in model.describe().items()
+            if k not in ('relative_threshold', 'physical')}
 
 
 def pack(members: Sequence[HybridModel]) -> EnsembleHybrid:
@@ -158,17 +156,16 @@ def pack(members: Sequence[HybridModel]) -> EnsembleHybrid:
     if len(members) < 2:
         raise EnsembleError(f'an ensemble needs at least 2 members, got {len(members)}')
     first = members[0]
-    physics = physics_identity(first.physical)
+    physics, shape = physics_identity(first.physical), architecture(first)
     for i, m in enumerate(members[1:], start=1):
         m.spec.check_compatible(first.spec, f'member 0 of the ensemble (member {i})')
-        arch = (architecture(m), architecture(first))
-        if arch[0] != arch[1]:
+        if architecture(m) != shape:
             raise EnsembleError(f'member {i} has another architecture than member 0: '
-                                f'{arch[0]} against {arch[1]}')
-        if physics_identity(m.physical) != physics:
-            raise EnsembleError(f'member {i} corrects another physics ('
-                                f'{physics_identity(m.physical)[1]}) than member 0 '
-                                f'({physics[1]}): an ensemble shares one physics')
+                                f'{architecture(m)} against {shape}')
+        own = physics_identity(m.physical)
+        if own != physics:
+            raise EnsembleError(f'member {i} corrects another physics ({own[1]}) than '
+                                f'member 0 ({physics[1]}): an ensemble shares one physics')
     ensemble = EnsembleHybrid(members)
     ensemble.set_threshold(first.relative_threshold)
     return ensemble
