@@ -131,6 +131,25 @@ run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$noleak" \
   --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 --folds 5 > /dev/null
 mkdir -p "$OUT/cv5_noleak"
 run python docs/results/real/analysis/paired_seeds.py "$noleak" "$OUT/cv5_noleak" > /dev/null
+#     Run by run: where each hybrid wins and loses (folds.md).
+run python docs/results/real/analysis/workflow_folds.py "$noleak" "$OUT/cv5_noleak" > /dev/null
+# 17. What the fallbacks to the physics alone cost (post hoc, on a copy of step 16's
+#     study): each hybrid on the augmented physics that its fold's one validation run
+#     served as its physics alone is served at its best candidate threshold instead,
+#     and the study is pooled again (its trainings kept).
+nofallback="$WORK/kvlcc2_cv5_noleak_nofallback"
+rm -rf "$nofallback"
+cp -r "$noleak" "$nofallback"
+rm -rf "$nofallback"/runs/*/*/ensemble "$nofallback"/{report.md,table.md,results.json}
+mkdir -p "$OUT/cv5_noleak/no_fallback"
+run python docs/results/real/analysis/serve_best_candidate.py \
+  "$nofallback/runs/hybrid_on_augmented_physics" > "$OUT/cv5_noleak/no_fallback/served.md"
+run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$nofallback" \
+  --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 --folds 5 > /dev/null
+run python docs/results/real/analysis/paired_seeds.py "$nofallback" \
+  "$OUT/cv5_noleak/no_fallback" > /dev/null
+cp "$nofallback"/{table.md,results.json} "$OUT/cv5_noleak/no_fallback/"
+sed -i "s#$WORK/#\$WORK/#g" "$OUT"/cv5_noleak/no_fallback/*
 for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm cv5_noleak; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \

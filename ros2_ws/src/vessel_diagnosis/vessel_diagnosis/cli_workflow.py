@@ -78,7 +78,7 @@ def main(argv=None) -> int:
         diagnoses = {}
         for fold in folds:
             say(f'diagnosing fold {fold.index} ({len(fold.train)} training runs, judged on '
-                f'{len(fold.val)} validation runs)')
+                f"{len(fold.val)} validation run{'' if len(fold.val) == 1 else 's'})")
             diagnoses[fold.index] = diagnose_fold(dataset, fold, args.physics,
                                                   args.out / 'folds' / f'fold{fold.index}',
                                                   diagnose_cli.main)
