@@ -28,6 +28,7 @@ better forecast over the first seconds and the correction helps after them.
 
 from __future__ import annotations
 
+from contextlib import contextmanager
 import math
 
 import numpy as np
@@ -36,6 +37,20 @@ from vessel_physics.arrays import namespace
 
 BOUND_MODES = ('tanh', 'clamp')
 PERCENTILES = (2.5, 97.5)
+
+
+class ServedThreshold:
+    """For a model served at a threshold: ``relative_threshold`` and ``set_threshold(T)``."""
+
+    @contextmanager
+    def served_at(self, relative_threshold):
+        """Serve at another threshold inside the ``with`` block; the own one after it."""
+        own = self.relative_threshold
+        self.set_threshold(relative_threshold)
+        try:
+            yield self
+        finally:
+            self.set_threshold(own)
 
 
 def output_range(z_phy: np.ndarray) -> np.ndarray:

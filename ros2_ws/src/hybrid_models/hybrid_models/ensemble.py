@@ -18,11 +18,11 @@ serves them all.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from contextlib import contextmanager
 
 import torch
 from torch import nn
 
+from hybrid_models.bound import ServedThreshold
 from hybrid_models.hybrid_step import ENSEMBLE_KIND, ensemble_step
 from hybrid_models.nets import HybridModel
 
@@ -33,7 +33,7 @@ class EnsembleError(ValueError):
     """Members that cannot be served together; the message is one line."""
 
 
-class EnsembleHybrid(nn.Module):
+class EnsembleHybrid(nn.Module, ServedThreshold):
     """K hybrids of one config on one physics; each step adds their mean correction."""
 
     kind = KIND
@@ -75,16 +75,6 @@ class EnsembleHybrid(nn.Module):
         """Serve every member at ``relative_threshold`` (``HybridModel.set_threshold``)."""
         for member in self.members:
             member.set_threshold(relative_threshold)
-
-    @contextmanager
-    def served_at(self, relative_threshold):
-        """Serve at another threshold inside the ``with`` block; the own one after it."""
-        own = self.relative_threshold
-        self.set_threshold(relative_threshold)
-        try:
-            yield self
-        finally:
-            self.set_threshold(own)
 
     def step_bounds(self, horizon: int) -> torch.Tensor | None:
         """Half-widths (horizon, n_state) of the served threshold; None when constant."""

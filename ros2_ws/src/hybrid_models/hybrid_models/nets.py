@@ -19,14 +19,19 @@ returning the states z[t0:t0+H] (B, H, n_state) in physical units.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
 import math
 
 import numpy as np
 import torch
 from torch import nn
 
-from hybrid_models.bound import half_width, is_constant, schedule_of, step_bounds
+from hybrid_models.bound import (
+    ServedThreshold,
+    half_width,
+    is_constant,
+    schedule_of,
+    step_bounds,
+)
 from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weights
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import PhysicalModel
@@ -163,7 +168,7 @@ class LSTMBaseline(_Normalized):
                 'dropout': self.dropout}
 
 
-class HybridModel(_Normalized):
+class HybridModel(_Normalized, ServedThreshold):
     """
     Residual hybrid of Baier et al.: z_{t+1} = z_phy_{t+1} + bound(LSTM residual).
 
@@ -225,16 +230,6 @@ class HybridModel(_Normalized):
         b = step_bounds(relative_threshold, self.output_range.double().numpy(),
                         self.spec.dt, horizon)
         return torch.as_tensor(b, dtype=self.bound.dtype, device=self.bound.device)
-
-    @contextmanager
-    def served_at(self, relative_threshold):
-        """Serve at another threshold inside the ``with`` block; the own one after it."""
-        own = self.relative_threshold
-        self.set_threshold(relative_threshold)
-        try:
-            yield self
-        finally:
-            self.set_threshold(own)
 
     def _bound_mode(self) -> str | None:
         """Return the bound to apply now (None while training unconstrained)."""
