@@ -240,3 +240,20 @@ def test_the_correction_scale_comes_from_the_data_when_asked_not_from_the_physic
     assert np.all(scales['physics_residual'] < 0.1 * change)
     with pytest.raises(ConfigError, match='residual_scale'):
         load_config(SMOKE, base + ['model.residual_scale=bigger'])
+
+
+def test_a_choice_judged_on_one_validation_run_says_so():
+    def figures(errors, runs):
+        return {'score': float(errors.mean()), 'profile': profile(errors.mean(axis=0),
+                                                                  errors.mean(axis=0)),
+                'per_forecast': {'position': errors, 'state': errors, 'run': runs}}
+
+    physics_errors = np.ones((6, 2))
+    better = np.full((6, 2), 0.8)
+    for runs, caveat in [(np.zeros(6, int), True), (np.arange(6) % 2, False)]:
+        chosen = choose_schedule(lambda schedules, r=runs: [figures(better, r)] * len(schedules),
+                                 [0.0, 0.1], figures(physics_errors, runs), dt=1.0,
+                                 confidence=0.95)
+        assert chosen['relative_threshold'] == 0.1
+        assert chosen['validation_runs'] == len(np.unique(runs))
+        assert ('judged on one validation run' in chosen['reason']) == caveat

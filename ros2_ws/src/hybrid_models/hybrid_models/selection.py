@@ -11,7 +11,8 @@ validation run: the runs are the sampling units, since the forecasts of one run 
 its conditions and overlap. The mean of the runs' differences must exceed its standard
 error times the one-sided normal quantile of ``confidence`` (0.95: 1.645), so that a
 difference the validation runs cannot resolve is not called harm; with one validation
-run, or ``confidence`` None, any worse mean counts.
+run, or ``confidence`` None, any worse mean counts; the choice's reason then says that
+one run judged it (a user with few runs should know the fallback may be noise).
 
 The served threshold is the admissible one of the grid with the lowest validation score
 (sum over states of RMSE / std, the score epochs are selected by). When no threshold
@@ -127,6 +128,10 @@ def choose_schedule(evaluate: Callable[[list], list], grid: list, physics: dict,
     'candidates'} where every candidate row has its schedule and ``harms``.
     """
     steps = physics['profile']['steps']
+    runs = physics.get('per_forecast', {}).get('run')
+    n_runs = None if runs is None else int(len(np.unique(runs)))
+    caveat = ('; judged on one validation run, where any worse mean counts as harm'
+              if n_runs == 1 else '')
     rows: list[dict] = []
     for start in [0.0] + [k * dt for k in steps[:-1]]:
         tried = []
@@ -153,11 +158,12 @@ def choose_schedule(evaluate: Callable[[list], list], grid: list, physics: dict,
             return {'relative_threshold': simplest(best['schedule']), 'score': best['score'],
                     'reason': f'lowest validation score not worse than the physics alone at '
                               f'any reported step{when} ({100 * gain:.1f} % below the '
-                              f'physics alone)', 'candidates': rows}
+                              f'physics alone){caveat}', 'candidates': rows,
+                    'validation_runs': n_runs}
     return {'relative_threshold': PHYSICS_ALONE, 'score': physics['score'],
             'reason': 'no threshold forecasts the validation runs better than the physics '
                       'alone without being worse at a reported step; the physics alone is '
-                      'served', 'candidates': rows}
+                      f'served{caveat}', 'candidates': rows, 'validation_runs': n_runs}
 
 
 def simplest(schedule: list[tuple[float, float | None]]):
