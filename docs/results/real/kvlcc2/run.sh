@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Derive every KVLCC2 figure in docs/results/real/README.md from the original tank logs.
 # Usage (repo root, after `make setup`): docs/results/real/kvlcc2/run.sh [SHARED_REAL] [WORK]
-# About five and a half hours on 2 cores: 15 trainings on the held-out split and
-# 75 + 30 + 50 + 25 over five folds, one to three minutes each (a second call keeps every
-# finished training).
+# About six and a half hours on 2 cores: 15 + 10 trainings on the held-out split and
+# 75 + 30 + 50 + 25 + 25 over five folds, one to three minutes each (a second call keeps
+# every finished training).
 set -euo pipefail
 REAL="${1:-../shared/real}"
 WORK="${2:-/tmp/real}"
