@@ -17,8 +17,9 @@ reported horizon step (do no harm). The hybrid on the augmented physics starts f
 the recurrent layers of the one on the nominal physics of its fold and seed (its
 correction starts at zero all the same; --cold-start: from scratch).
 
-Writes into --out: report.md (the table, what each fold's diagnosis found, the check),
-table.md, results.json, position_error_over_horizon.png, folds/ (views and each fold's
+Writes into --out: report.md (the table, what each fold's diagnosis found, the check
+and, with two seeds or more, the two hybrids compared seed by seed), table.md,
+results.json, position_error_over_horizon.png, folds/ (views and each fold's
 diagnosis report) and runs/ (the trainings; a second call keeps finished ones). Exit
 codes: 0 done, 1 bad input or a failed training, 2 bad arguments.
 """
@@ -39,7 +40,7 @@ from hybrid_models.cli.crossval import (
 )
 from vessel_datasets.format import DatasetError, read_dataset
 from vessel_diagnosis import cli as diagnose_cli
-from vessel_diagnosis.workflow import diagnose_fold, nominal_physics, plan
+from vessel_diagnosis.workflow import diagnose_fold, nominal_physics, plan, seed_by_seed
 
 PROG = 'workflow'
 
@@ -99,6 +100,7 @@ def main(argv=None) -> int:
         return 1
     result['diagnoses'] = diagnoses
     result['nominal_physics'] = nominal
+    result['paired'], paired_section = seed_by_seed(result['rows'])
     # The report sits in --out: the folds' own reports are named relative to it.
     found = [f"- fold {k}: {(d['summary'] or 'no summary').replace(f'{args.out}/', '')}"
              + ('' if d['augmented'] else ' (no augmented physics: the hybrid on augmented '
@@ -109,7 +111,8 @@ def main(argv=None) -> int:
              '', 'What the diagnosis found on each fold (identified on its training runs, '
              'judged on its validation runs):', '', *found, '']
     print(write_study(args.out, result, dataset.vessel,
-                      f'Diagnose, augment, retrain: {dataset.vessel.name}', intro))
+                      f'Diagnose, augment, retrain: {dataset.vessel.name}', intro,
+                      paired_section))
     return 0
 
 

@@ -8,7 +8,8 @@ comparison). Then the hybrid of one config is trained on the nominal physics and
 fold's augmented physics, beside an LSTM baseline, each with every seed, and all are
 compared on the held-out runs with the physics alone: nominal physics, augmented
 physics, the hybrid on each, the LSTM, and the do-no-harm check of each hybrid against
-its own physics.
+its own physics; with two seeds or more, the two hybrids seed by seed (an order, or a
+tie).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import json
 from pathlib import Path
 
 from hybrid_models.studies.crossval import Fold, ModelPlan
+from hybrid_models.studies.paired import paired_rows, paired_table
 from vessel_datasets.format import Dataset, resplit
 
 NOMINAL, AUGMENTED, LSTM = 'hybrid on nominal physics', 'hybrid on augmented physics', 'lstm'
@@ -87,3 +89,21 @@ def nominal_physics(dataset: Dataset, given: str | None) -> str:
                          f'physics: in its vessel file); give --physics NOMINAL.yaml')
     return str(physics)
 
+
+def seed_by_seed(rows: list[dict]) -> tuple[dict | None, list[str]]:
+    """
+    Compare the hybrid on augmented and on nominal physics seed by seed.
+
+    ``rows`` are a study's result rows. Returns the comparison
+    (``hybrid_models.studies.paired``) and the report's section on it; (None, []) when
+    either hybrid has fewer than two seeds, which cannot tell an order from a tie.
+    """
+    by_label = {row['label']: row for row in rows}
+    if any(len(by_label.get(label, {}).get('per_seed_metrics') or []) < 2
+           for label in (AUGMENTED, NOMINAL)):
+        return None, []
+    paired = paired_rows(by_label[AUGMENTED], by_label[NOMINAL])
+    return paired, [f'## Seed by seed: {AUGMENTED} (first) against {NOMINAL}', '',
+                    'Seed k of one is paired with seed k of the other (same folds, '
+                    'validation runs and seed). A difference whose p-values exceed 0.05 '
+                    'is a tie between the two, not an order.', '', *paired_table(paired)]

@@ -140,16 +140,18 @@ def run_plan(args, models: list[ModelPlan], folds, say) -> dict | None:
     return result
 
 
-def write_study(out: Path, result: dict, spec, title: str, intro: list[str]) -> str:
+def write_study(out: Path, result: dict, spec, title: str, intro: list[str],
+                sections: list[str] = ()) -> str:
     """Write results.json, table.md, the figure and report.md into ``out``; return the table."""
     write_results(out, result, spec)
     table = (out / 'table.md').read_text()
-    (out / 'report.md').write_text(report_text(title, result, table, intro))
+    (out / 'report.md').write_text(report_text(title, result, table, intro, sections))
     return table
 
 
-def report_text(title: str, result: dict, table: str, intro: list[str]) -> str:
-    """Return report.md: what was compared how, the table, the do-no-harm check."""
+def report_text(title: str, result: dict, table: str, intro: list[str],
+                sections: list[str] = ()) -> str:
+    """Return report.md: what was compared how, the table, the do-no-harm check, sections."""
     p = result['protocol']
     folds = ("the dataset's own split" if p['folds'] == 1 else
              f"{p['folds']} folds, every recording in one of them held out once")
@@ -158,6 +160,8 @@ def report_text(title: str, result: dict, table: str, intro: list[str]) -> str:
              f"{p['stride']} samples after a {p['window']}-sample window), pooled over "
              f"{folds}; {len(p['seeds'])} seeds per model (mean ± sd over seeds).", '',
              table, '## Do no harm on the held-out runs', ''] + harm_lines(result['rows'])
+    if sections:
+        lines += ['', *sections]
     return '\n'.join(lines + ['', 'Every number: results.json; figure: '
                               'position_error_over_horizon.png.', ''])
 
