@@ -250,3 +250,18 @@ def test_a_model_that_starts_from_another_trains_after_it_from_its_checkpoint(
     with pytest.raises(ValueError, match="start_from 'nowhere' is not a model of the plan"):
         studies.train_plan([ModelPlan('x', tmp_path / 'c.yaml', start_from='nowhere')],
                            folds, [0], tmp_path / 'out', say=lambda m: None)
+
+
+def test_a_fold_that_could_spare_a_second_validation_run_is_warned_of(tmp_path, capsys):
+    toy = write_toy_dataset(tmp_path / 'toy10', n_runs=10, n_samples=260)
+    base = ['--dataset', str(toy), '--out', str(tmp_path / 'cv'), '--folds', '2',
+            '--model', f'hybrid={SMOKE}', '--horizon', '100', '--window', '20']
+    folds = crossval.folds_of(read_dataset(toy), crossval.build_parser().parse_args(base))
+    assert [len(f.val) for f in folds] == [1, 1]
+    warning = capsys.readouterr().err
+    assert 'fold(s) 0, 1 validate on one recording' in warning
+    suggested = warning.split('--val-fraction ')[1].split()[0]
+    folds = crossval.folds_of(read_dataset(toy), crossval.build_parser().parse_args(
+        base + ['--val-fraction', suggested]))
+    assert [len(f.val) for f in folds] == [2, 2]
+    assert 'validate on one recording' not in capsys.readouterr().err

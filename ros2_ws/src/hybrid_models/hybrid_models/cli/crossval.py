@@ -27,6 +27,7 @@ trainings). Exit codes: 0 done, 1 a training or an input failed, 2 bad arguments
 
 import argparse
 from collections.abc import Callable
+import math
 from pathlib import Path
 import sys
 import time
@@ -47,6 +48,8 @@ from hybrid_models.studies.crossval import (
 from vessel_datasets.format import DatasetError, read_dataset
 
 PROG = 'crossval'
+# A fold with this many training recordings can spare a second one to validate.
+MIN_TRAIN_FOR_TWO_VAL = 4
 
 
 def labelled(text: str) -> tuple[str, str]:
@@ -84,7 +87,8 @@ def add_plan_options(parser: argparse.ArgumentParser) -> None:
                         help='deal each fold about as many samples as whole recordings '
                              'allow (default), or as many recordings')
     parser.add_argument('--val-fraction', type=float, default=0.1,
-                        help="share of a fold's other recordings that validate (0.1)")
+                        help="share of a fold's other recordings that validate (0.1; "
+                             'with few recordings give one that lets two validate)')
     parser.add_argument('--fold-seed', type=int, default=0,
                         help='seed of the shuffle that deals recordings into folds (0)')
     parser.add_argument('--set', action='append', default=[], metavar='KEY=VALUE',
@@ -109,8 +113,19 @@ def folds_of(dataset, args) -> list:
     A validating run needs one forecast's window and horizon, the test forecasts' own.
     """
     window, horizon, _ = evaluation_protocol(dataset.vessel, args.window, args.horizon, 1)
-    return make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
-                      args.fold_by, window + horizon, args.fold_balance)
+    folds = make_folds(dataset, args.out, args.folds, args.fold_seed, args.val_fraction,
+                       args.fold_by, window + horizon, args.fold_balance)
+    # Epochs and the served threshold are chosen on the validation runs, and do no harm
+    # can weigh a difference against its spread only across two runs or more: on one,
+    # noise decided (KVLCC2 five folds, docs/results/real/README.md).
+    single = [f for f in folds if len(f.val) == 1 and len(f.train) >= MIN_TRAIN_FOR_TWO_VAL]
+    if single and (args.folds is not None or args.fold_by is not None):
+        others = max(len(f.train) + len(f.val) for f in single)
+        print(f'warning: fold(s) {", ".join(str(f.index) for f in single)} validate on one '
+              'recording, so epochs and thresholds are chosen on that run alone; '
+              f'--val-fraction {math.ceil(200 / others) / 100:g} lets two validate',
+              file=sys.stderr)
+    return folds
 
 
 def stopwatch() -> Callable[[str], None]:
