@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Derive every KVLCC2 figure in docs/results/real/README.md from the original tank logs.
 # Usage (repo root, after `make setup`): docs/results/real/kvlcc2/run.sh [SHARED_REAL] [WORK]
-# About seven hours on 2 cores: 15 + 10 trainings on the held-out split and
-# 75 + 30 + 50 + 25 + 25 + 30 over five folds, one to three minutes each (a second call
+# About eight hours on 2 cores: 15 + 10 trainings on the held-out split and
+# 75 + 30 + 50 + 25 + 25 + 30 + 50 over five folds, one to three minutes each (a second call
 # keeps every finished training).
 set -euo pipefail
 REAL="${1:-../shared/real}"
@@ -161,7 +161,18 @@ run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$noleak8" \
   --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 8 --folds 5 > /dev/null
 mkdir -p "$OUT/cv5_noleak8"
 run python docs/results/real/analysis/paired_seeds.py "$noleak8" "$OUT/cv5_noleak8" > /dev/null
-for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm cv5_noleak cv5_noleak8; do
+# 19. Step 16 with two validation runs per fold instead of one (--val-fraction 0.2: each
+#     fold's view moves one training run to validation; the same test runs, five seeds;
+#     every training and diagnosis anew), and its two hybrids seed by seed.
+run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_cv5_val2" \
+  --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 --folds 5 --val-fraction 0.2 > /dev/null
+mkdir -p "$OUT/cv5_val2"
+run python docs/results/real/analysis/paired_seeds.py "$WORK/kvlcc2_cv5_val2" \
+  "$OUT/cv5_val2" > /dev/null
+run python docs/results/real/analysis/workflow_folds.py "$WORK/kvlcc2_cv5_val2" \
+  "$OUT/cv5_val2" > /dev/null
+for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm cv5_noleak cv5_noleak8 \
+    cv5_val2; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
     "$OUT/$study/"
