@@ -118,9 +118,17 @@ def folds_of(dataset, args) -> list:
     # Epochs and the served threshold are chosen on the validation runs, and do no harm
     # can weigh a difference against its spread only across two runs or more: on one,
     # noise decided (KVLCC2 five folds, docs/results/real/README.md).
-    single = [f for f in folds if len(f.val) == 1 and len(f.train) >= MIN_TRAIN_FOR_TWO_VAL]
+    # Folds deal whole recordings (a recording may hold several runs): count those.
+    recording_of = {run: rec for rec, runs in dataset.recordings().items() for run in runs}
+
+    def recordings(runs) -> int:
+        return len({recording_of[run] for run in runs})
+
+    single = [f for f in folds if recordings(f.val) == 1
+              and recordings(f.train) >= MIN_TRAIN_FOR_TWO_VAL]
     if single and (args.folds is not None or args.fold_by is not None):
-        others = max(len(f.train) + len(f.val) for f in single)
+        # The smallest fold's share gives two to every fold.
+        others = min(recordings(f.train + f.val) for f in single)
         print(f'warning: fold(s) {", ".join(str(f.index) for f in single)} validate on one '
               'recording, so epochs and thresholds are chosen on that run alone; '
               f'--val-fraction {math.ceil(200 / others) / 100:g} lets two validate',
