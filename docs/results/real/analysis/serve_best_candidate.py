@@ -9,21 +9,19 @@ With one validation run, ``hybrid_models.selection`` counts any worse mean at a 
 step as harm, and a training whose every threshold is worse somewhere on that run is
 served as its physics alone. This post hoc check serves each such training at the
 threshold of the lowest validation score among its whole-forecast candidates instead,
-harm ignored (``offline/set_threshold.py``; the weights are untouched), so that the study
-pooled again says what the fallbacks cost on the held-out runs. A training whose epochs
-all lost to the physics (no candidates) stays as it is. Prints one Markdown row per
-training changed, and the count of those left.
+harm ignored (``set_threshold`` of ``offline/set_threshold.py``; weights untouched), so
+that the study pooled again says what the fallbacks cost on the held-out runs. A
+training whose epochs all lost to the physics (no candidates) stays as it is. Prints one
+Markdown row per training changed, and the count of those left.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-import subprocess
 import sys
 
 from hybrid_models.checkpoint import read_header
-
-REPO = Path(__file__).resolve().parents[4]
+from hybrid_models.cli.set_threshold import set_threshold
 
 
 def main(argv: list[str]) -> int:
@@ -43,9 +41,7 @@ def main(argv: list[str]) -> int:
             left += 1
             continue
         best = min(whole, key=lambda c: c['score'])
-        subprocess.run([sys.executable, str(REPO / 'offline' / 'set_threshold.py'),
-                        str(path), str(best['relative_threshold'])], check=True,
-                       stdout=subprocess.DEVNULL)
+        set_threshold(path, best['relative_threshold'], path)
         name = '/'.join(path.parts[-3:-1])
         print(f"| {name} | 0 (physics alone) | {best['relative_threshold']} | "
               f"{best['score']:.4f} | {selection['physics']['score']:.4f} | "
