@@ -12,6 +12,7 @@ an absolute time that depends on the machine) and states its goals beside the fi
     python offline/bench.py outage     # /diagnostics while a source pauses, dies, doubles
     python offline/bench.py departure  # the departure WARN: an effect switched on mid-run
     python offline/bench.py scale      # 1 vs 2 training processes, 10x data, 1 vs 2 workers
+    python offline/bench.py launch     # a study's trainings forked vs one process each
 """
 
 import argparse
@@ -33,6 +34,8 @@ SUITES = {
                                           'unmodelled effect switched on mid-run'),
     'scale': ('benchmarks.scale', 'scaling out: training processes and memory, '
                                   'conversion workers'),
+    'launch': ('benchmarks.launch', "a study's trainings forked from the launcher vs one "
+                                    'process each'),
 }
 
 

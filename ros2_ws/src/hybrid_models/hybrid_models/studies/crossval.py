@@ -7,7 +7,7 @@ recording stay together), a share of the others validates and the rest trains; w
 ``folds=None`` the dataset's own split is the one fold. A fold is a view of the dataset
 (``vessel_datasets.format.resplit``): nothing is copied.
 
-``train_plan`` trains every (model, fold, seed) as a resumable subprocess
+``train_plan`` trains every (model, fold, seed) as a resumable process of its own
 (``training.jobs``), a few at a time. ``ensemble_plan`` packs each hybrid's seeds of a
 fold into the ensemble a user would serve (``training.ensemble``: its threshold and
 bands chosen on the fold's validation runs). ``evaluate_plan`` forecasts each fold's

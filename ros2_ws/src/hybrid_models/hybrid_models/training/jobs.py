@@ -1,17 +1,24 @@
 """
-Trainings as resumable subprocesses of the ``train`` program, for tools that train several.
+Trainings as resumable processes of the ``train`` program, for tools that train several.
 
 ``train_job(label, config, overrides, out)`` trains one model into ``out`` (kept when
 already finished, continued from its last epoch when a run was killed) and returns a
 summary; its output goes to ``out/train.log``. Tools run several at once in a thread pool.
+Each training is a process forked by the tool's launcher (``launcher``), which imported
+torch once for all of them.
 """
 
+import atexit
+from concurrent.futures import Future
 import ctypes
+import itertools
+import json
 import os
 from pathlib import Path
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 from hybrid_models.checkpoint import CheckpointError, read_header
@@ -19,6 +26,7 @@ from hybrid_models.training import MODEL_FILE
 
 # A process per training: its memory is returned when it ends, and a kill loses only it.
 TRAIN_MODULE = 'hybrid_models.cli.train'
+LAUNCHER_MODULE = 'hybrid_models.training.launcher'
 PR_SET_PDEATHSIG = 1   # prctl(2): the signal a process gets when its parent dies
 PARENT_ENV = 'HYBRID_MODELS_TRAIN_PARENT'   # set by train_job: the tool's process id
 
@@ -49,18 +57,89 @@ def finished(run_dir: Path) -> bool:
     return 'loop' not in header or header['loop'].get('finished', True)
 
 
+class Launcher:
+    """The tool's side of its launcher process: start trainings, wait for their ends."""
+
+    def __init__(self) -> None:
+        self.proc = subprocess.Popen(
+            [sys.executable, '-m', LAUNCHER_MODULE], stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE, env={**os.environ, PARENT_ENV: str(os.getpid())})
+        self.lock = threading.Lock()
+        self.ids = itertools.count()
+        self.started: dict[int, Future] = {}   # id -> the training's process id
+        self.ended: dict[int, Future] = {}     # id -> its exit code
+        threading.Thread(target=self._read, name='launcher reader', daemon=True).start()
+        atexit.register(self.close)
+
+    def close(self) -> None:
+        """End the launcher once its trainings are done (it ends with the tool anyway)."""
+        with self.lock:
+            if not self.proc.stdin.closed:
+                self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.proc.terminate()
+
+    def alive(self) -> bool:
+        """Tell whether the launcher still takes trainings."""
+        return self.proc.poll() is None
+
+    def start(self, argv: list[str], log: Path) -> tuple[int, Future]:
+        """Start ``train`` with ``argv``, output to ``log``; return (its pid, its exit code)."""
+        with self.lock:
+            job = next(self.ids)
+            started, ended = self.started[job], self.ended[job] = Future(), Future()
+            self.proc.stdin.write((json.dumps({'id': job, 'argv': argv, 'log': str(log)})
+                                   + '\n').encode())
+            self.proc.stdin.flush()
+        return started.result(), ended
+
+    def _read(self) -> None:
+        for line in self.proc.stdout:
+            message = json.loads(line)
+            with self.lock:
+                if 'pid' in message:
+                    self.started.pop(message['id']).set_result(message['pid'])
+                else:
+                    self.ended.pop(message['id']).set_result(message['exit'])
+        self.proc.wait()
+        with self.lock:   # the launcher ended: what it had not answered fails
+            for future in [*self.started.values(), *self.ended.values()]:
+                future.set_exception(RuntimeError(
+                    f'the training launcher ended (exit {self.proc.returncode})'))
+            self.started.clear()
+            self.ended.clear()
+
+
+_launcher: Launcher | None = None
+_launcher_lock = threading.Lock()
+
+
+def launcher() -> Launcher:
+    """Return this tool's launcher, started on first use (again if it ended)."""
+    global _launcher
+    with _launcher_lock:
+        if _launcher is None or not _launcher.alive():
+            _launcher = Launcher()
+        return _launcher
+
+
 def train_job(label: str, config: Path, overrides: list[str], out: Path) -> dict:
-    """Train one model in a subprocess (resumable); return {label, status, dir[, seconds]}."""
+    """Train one model in a process of its own, resumable; return {label, status, dir, ...}."""
     out = Path(out)
     if finished(out):
         return {'label': label, 'status': 'kept', 'dir': str(out)}
-    cmd = [sys.executable, '-m', TRAIN_MODULE, str(config), '--out', str(out), '--resume',
-           '--quiet'] + sum((['--set', s] for s in overrides), [])
+    # Absolute paths: the launcher works in the directory the tool was in when it started.
+    argv = [str(Path(config).resolve()), '--out', str(out.resolve()), '--resume',
+            '--quiet'] + sum((['--set', s] for s in overrides), [])
     out.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
-    with open(out / 'train.log', 'a') as log:
-        rc = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT,
-                            env={**os.environ, PARENT_ENV: str(os.getpid())}).returncode
-    status = 'ok' if rc == 0 else f'failed (exit {rc}, see {out / "train.log"})'
+    try:
+        rc = launcher().start(argv, out.resolve() / 'train.log')[1].result()
+        problem = None if rc == 0 else f'exit {rc}'
+    except (RuntimeError, OSError) as exc:   # the launcher itself ended
+        problem = str(exc)
+    status = 'ok' if problem is None else f'failed ({problem}, see {out / "train.log"})'
     return {'label': label, 'status': status, 'dir': str(out),
             'seconds': round(time.monotonic() - start, 1)}
