@@ -193,3 +193,40 @@ def test_the_predictor_serves_the_shipped_model_without_importing_torch():
     assert out.returncode == 0, out.stderr[-2000:]
     result = json.loads(out.stdout.strip().splitlines()[-1])
     assert result == {'torch': [], 'threshold': 0.15, 'finite': True}
+
+
+CACHE_CHECK = """
+import numpy as np
+import hybrid_predictor.node as node
+from hybrid_models.engine import Forecaster
+engine = Forecaster.from_checkpoint(node.default_model_path())
+w = engine.window
+engine.forecast(np.tile([6.0, 0.0, 0.0, 0.0, 0.0], (w, 1)),
+                np.tile([85.0, 0.0, 0.0, 3.0, 0.6, 0.8], (w, 1)),
+                np.tile([85.0, 0.0, 0.0, 3.0, 0.6, 0.8], (1, 5, 1)))
+"""
+
+
+def test_compiled_programs_are_kept_for_the_next_process_unless_turned_off(tmp_path):
+    root = Path(__file__).resolve().parents[2]
+    env = {k: v for k, v in os.environ.items() if k != 'JAX_COMPILATION_CACHE_DIR'}
+    env['PYTHONPATH'] = os.pathsep.join(p for p in sys.path if p)
+
+    def forecast_in_a_new_process(**settings):
+        out = subprocess.run([sys.executable, '-c', CACHE_CHECK], capture_output=True,
+                             text=True, cwd=root, env={**env, **settings}, timeout=240)
+        assert out.returncode == 0, out.stderr[-2000:]
+
+    # By default in the user's cache directory; the second process compiles nothing anew.
+    kept = tmp_path / 'home_cache' / 'hybrid_models' / 'jax'
+    forecast_in_a_new_process(XDG_CACHE_HOME=str(tmp_path / 'home_cache'))
+    def programs():
+        return {p.name: p.stat().st_mtime_ns for p in kept.glob('jit_*-cache')}
+
+    first = programs()
+    assert first
+    forecast_in_a_new_process(XDG_CACHE_HOME=str(tmp_path / 'home_cache'))
+    assert programs() == first   # loaded, not compiled and written again
+    # jax's own variable: empty turns it off.
+    forecast_in_a_new_process(XDG_CACHE_HOME=str(tmp_path / 'off'), JAX_COMPILATION_CACHE_DIR='')
+    assert not (tmp_path / 'off').exists()

@@ -23,7 +23,9 @@ the other. So that a batch of what-if plans uses every core, the forecaster asks
 one host device per core (``--xla_force_host_platform_device_count`` in ``XLA_FLAGS``,
 unless the user set it or jax was imported first) and splits batches of
 ``MIN_SHARD`` plans or more across the devices; a single forecast stays on one device.
-Each plan's forecast is the same computation wherever it runs.
+Each plan's forecast is the same computation wherever it runs. Compiled programs are
+kept on disk (``compilation_cache_dir``), so a process that compiles what another
+compiled before loads it instead.
 """
 
 from __future__ import annotations
@@ -66,8 +68,49 @@ DEVICE_COUNT_FLAG = '--xla_force_host_platform_device_count'
 MIN_SHARD = 8   # plans per device below which splitting a batch costs more than it gains
 
 
+# Compiled programs kept on disk between processes (jax's persistent compilation cache):
+# a predictor restarted on board forecasts in under a second instead of compiling again
+# for seconds. jax's own variable names the directory; set empty, it turns the cache off.
+CACHE_ENV = 'JAX_COMPILATION_CACHE_DIR'
+CACHE_MAX_BYTES = 256 * 2 ** 20   # least recently used programs go beyond this
+_cache_configured = False
+
+
+def compilation_cache_dir(environ=os.environ) -> Path | None:
+    """Return where compiled programs are kept (None: not kept); ``$XDG_CACHE_HOME``-based."""
+    if CACHE_ENV in environ:
+        return Path(environ[CACHE_ENV]).expanduser() if environ[CACHE_ENV] else None
+    base = environ.get('XDG_CACHE_HOME') or Path.home() / '.cache'
+    return Path(base) / 'hybrid_models' / 'jax'
+
+
+def _use_compilation_cache(jax) -> None:
+    global _cache_configured
+    if _cache_configured:
+        return
+    _cache_configured = True
+    cache = compilation_cache_dir()
+    if cache is None:
+        return
+    if jax.config.jax_compilation_cache_dir:   # set in code before: the user's own
+        cache = Path(jax.config.jax_compilation_cache_dir)
+    try:
+        cache.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:   # a read-only home: compile every time, as before
+        print(f'hybrid_models: compiled programs not kept ({cache}: {exc.strerror})',
+              file=sys.stderr)
+        return
+    jax.config.update('jax_compilation_cache_dir', str(cache))
+    # Every program, however quick to compile (jax keeps those over 1 s by default):
+    # the predictor compiles one per batch size, each under a second.
+    for option, value in (('jax_persistent_cache_min_compile_time_secs', 0.0),
+                          ('jax_compilation_cache_max_size', CACHE_MAX_BYTES)):
+        if option.upper() not in os.environ:
+            jax.config.update(option, value)
+
+
 def jax_module():
-    """Return jax, first asking XLA for one host device per core (module docstring)."""
+    """Return jax, asking XLA for a host device per core and keeping compiled programs."""
     if 'jax' not in sys.modules and DEVICE_COUNT_FLAG not in os.environ.get('XLA_FLAGS', ''):
         cores = len(os.sched_getaffinity(0)) if hasattr(os, 'sched_getaffinity') else (
             os.cpu_count() or 1)
@@ -75,6 +118,7 @@ def jax_module():
                                    f' {DEVICE_COUNT_FLAG}={cores}').strip()
     import jax
 
+    _use_compilation_cache(jax)
     return jax
 
 
