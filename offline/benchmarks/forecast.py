@@ -9,7 +9,9 @@ Forecast speed of the default model, all figures measured in one run.
   measured on this machine now, the time no implementation can beat;
 - throughput: forecasts per second for a batch of 64 plans;
 - node: from a state message being published to its forecast arriving, over DDS on
-  loopback through a predictor process (``--skip-node`` leaves it out).
+  loopback through a predictor process (``--skip-node`` leaves it out);
+- start-up: the warm-up a starting predictor runs (every batch size compiled), in a
+  new process with an empty compilation cache and in the next one that finds it filled.
 """
 
 from __future__ import annotations
@@ -23,7 +25,16 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[2]
 GOALS = {'engine_p50_ms': '<= 10', 'speedup_vs_naive': '>= 20',
-         'batch64_forecasts_per_s': '>= 1000', 'node_p99_ms': '<= 50'}
+         'batch64_forecasts_per_s': '>= 1000', 'node_p99_ms': '<= 50',
+         'start_up_speedup': '>= 3'}
+WARM_UP = """
+import sys, time
+from hybrid_models.engine import Forecaster
+engine = Forecaster.from_checkpoint(sys.argv[1])
+started = time.perf_counter()
+engine.warm_up(int(sys.argv[2]), window=engine.window, max_batch=64)
+print(time.perf_counter() - started)
+"""
 
 
 def add_arguments(parser) -> None:
@@ -166,6 +177,20 @@ def timed_states(samples: int) -> list[float]:
     return latencies
 
 
+def start_up(path: Path, horizon: int) -> dict:
+    """Time the warm-up in a new process, with an empty then a filled compilation cache."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, 'JAX_COMPILATION_CACHE_DIR': cache}
+        cold, cached = (float(subprocess.run(
+            [sys.executable, '-c', WARM_UP, str(path), str(horizon)], env=env, check=True,
+            capture_output=True, text=True).stdout.split()[-1]) for _ in range(2))
+    return {'warm_up_cold_s': round(cold, 2), 'warm_up_cached_s': round(cached, 2),
+            'start_up_speedup': round(cold / cached, 1)}
+
+
 def run(args) -> dict:
     """Measure everything; return the figures."""
     import torch
@@ -218,6 +243,7 @@ def run(args) -> dict:
         'batch64_ms': round(batch_s * 1e3, 1),
         'batch64_forecasts_per_s': round(64 / batch_s, 1),
     }
+    result.update(start_up(path, horizon))
     if not args.skip_node:
         result.update(node_latency(path, args.node_samples))
     met = {}

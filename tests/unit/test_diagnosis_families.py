@@ -55,7 +55,9 @@ def _only(named, category):
     return record
 
 
-@pytest.mark.parametrize('vessel', ['kvlcc2_hsva', 'otter'])
+# The Otter's control is a scenario of its own (12 s); the KVLCC2's here and the patrol
+# boat's (test_diagnosis_cases.py) run by default.
+@pytest.mark.parametrize('vessel', ['kvlcc2_hsva', pytest.param('otter', marks=pytest.mark.slow)])
 def test_control_reports_nothing(identified, vessel):
     _, named, _ = identified(vessel, 'control')
     assert named.status == 'nothing_significant'

@@ -3,8 +3,6 @@
 import os
 from pathlib import Path
 import signal
-import subprocess
-import sys
 import time
 
 import pytest
@@ -13,6 +11,7 @@ from safetensors.torch import load_file
 from hybrid_models.checkpoint import CheckpointError, read_header
 from hybrid_models.toy import write_toy_dataset
 from hybrid_models.training import load_config, train
+from hybrid_models.training.jobs import launcher
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'
@@ -30,26 +29,26 @@ def saved_epoch(path: Path) -> int:
 
 def test_resume_after_kill_loses_at_most_one_epoch(tmp_path):
     toy = write_toy_dataset(tmp_path / 'toy', n_runs=6, n_samples=300)
-    out = tmp_path / 'run'
-    cmd = [sys.executable, str(ROOT / 'offline' / 'train.py'), str(SMOKE), '--dataset',
-           str(toy), '--out', str(out), '--quiet'] + sum([['--set', s] for s in LONGER], [])
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    out, log = tmp_path / 'run', tmp_path / 'train.log'
+    # The train program, as a study starts it (forked by the tool's launcher).
+    argv = [str(SMOKE), '--dataset', str(toy), '--out', str(out), '--quiet'] + sum(
+        [['--set', s] for s in LONGER], [])
+    pid, ended = launcher().start(argv, log)
     deadline = time.monotonic() + 60
-    while saved_epoch(out / 'last.safetensors') < 5 and proc.poll() is None:
+    while saved_epoch(out / 'last.safetensors') < 5 and not ended.done():
         assert time.monotonic() < deadline, 'training made no progress'
         time.sleep(0.01)
-    os.kill(proc.pid, signal.SIGKILL)
-    proc.wait()
-    assert proc.returncode == -signal.SIGKILL, 'the run finished before it could be killed'
+    os.kill(pid, signal.SIGKILL)
+    assert ended.result(timeout=30) == -signal.SIGKILL, 'the run finished before it was killed'
     lines_before = (out / 'log.jsonl').read_text().splitlines()
     at_kill = saved_epoch(out / 'last.safetensors')
     # At most the epoch in flight is lost: the checkpoint is at most one behind the log
     # (whose first line is the reference, epoch -1).
     assert at_kill >= len(lines_before) - 2 and at_kill >= 5
 
-    resumed = subprocess.run(cmd + ['--resume'], capture_output=True, text=True, timeout=120)
-    assert resumed.returncode == 0, resumed.stderr
-    assert f'resuming at epoch {at_kill}' in resumed.stderr
+    assert launcher().start(argv + ['--resume'], log)[1].result(timeout=120) == 0, \
+        log.read_text()[-2000:]
+    assert f'resuming at epoch {at_kill}' in log.read_text()
     epochs = [int(line.split('"epoch": ')[1].split(',')[0])
               for line in (out / 'log.jsonl').read_text().splitlines()]
     assert epochs == list(range(-1, len(epochs) - 1))   # no gap, no repeat
