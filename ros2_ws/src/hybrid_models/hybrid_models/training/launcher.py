@@ -33,15 +33,16 @@ from hybrid_models.training.jobs import PARENT_ENV, TRAIN_MODULE, die_with_paren
 WARM_MODULES = (TRAIN_MODULE, 'torch._dynamo')
 
 
-def _say(message: dict) -> None:
+def _say(channel: int, message: dict) -> None:
     # One write of one line: the tool's reader never sees two messages interleaved.
-    os.write(sys.stdout.fileno(), (json.dumps(message) + '\n').encode())
+    os.write(channel, (json.dumps(message) + '\n').encode())
 
 
-def _train(program, job: dict, launcher_pid: int) -> None:
+def _train(program, job: dict, launcher_pid: int, channel: int) -> None:
     """Run one training in this forked child; never returns."""
     code = 1
     try:
+        os.close(channel)   # only the launcher answers the tool
         signal.set_wakeup_fd(-1)
         signal.signal(signal.SIGCHLD, signal.SIG_DFL)
         signal.signal(signal.SIGINT, signal.default_int_handler)   # Ctrl-C stops a training
@@ -82,6 +83,10 @@ def main() -> int:
     die_with_parent()
     # Ctrl-C reaches the whole process group: the tool ends, and the launcher with it.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    # The tool reads only the launcher's messages on stdout: anything else printed here
+    # (an import's warning) goes to stderr.
+    channel = os.dup(sys.stdout.fileno())
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     import importlib
     for name in WARM_MODULES:
         importlib.import_module(name)
@@ -102,16 +107,17 @@ def main() -> int:
                 pid, status = os.waitpid(-1, os.WNOHANG)
                 if pid == 0:
                     break
-                _say({'id': running.pop(pid), 'exit': os.waitstatus_to_exitcode(status)})
+                _say(channel, {'id': running.pop(pid),
+                               'exit': os.waitstatus_to_exitcode(status)})
         if stdin in ready:
             jobs, eof = _lines(stdin, buffer)
             open_ = not eof
             for job in jobs:
                 pid = os.fork()
                 if pid == 0:
-                    _train(program, job, me)
+                    _train(program, job, me, channel)
                 running[pid] = job['id']
-                _say({'id': job['id'], 'pid': pid})
+                _say(channel, {'id': job['id'], 'pid': pid})
     return 0
 
 
