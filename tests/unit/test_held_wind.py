@@ -58,6 +58,7 @@ def test_plans_with_their_own_wind_are_forecast_as_given(engine):
                                rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.slow   # four 15-minute runs simulated and forecast (16-19 s); the rules above
 def test_holding_the_wind_over_the_earth_forecasts_turns_better(engine):
     # The demo's scenario (simulator seed 11, operator plans 1011 + k), 4 runs of 15
     # minutes, 10-minute forecasts every 60 s: the error against the noise-free truth
