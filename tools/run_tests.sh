@@ -12,9 +12,9 @@ tail -n 1 <<<"$report"
 
 # A DDS domain of its own for this test session, so parallel sessions never cross.
 export ROS_DOMAIN_ID="${TEST_ROS_DOMAIN_ID:-$((110 + $$ % 100))}"
-# Compiled forecast programs (hybrid_models.engine) are shared by the session's
-# processes, most nodes the tests start compile the same ones, and kept in the build
-# tree, not the user's home; an empty value (set by the caller) keeps nothing.
+# Compiled forecast programs (hybrid_models.engine) go to one cache in the build tree,
+# not the user's home: the nodes the tests start compile the same ones, and each loads
+# what another compiled. An empty value set by the caller keeps nothing.
 export JAX_COMPILATION_CACHE_DIR="${JAX_COMPILATION_CACHE_DIR-$PWD/ros2_ws/build/jax_cache}"
 pytest_run() {
   python -m pytest "$@"

@@ -28,23 +28,26 @@ from hybrid_models.training import MODEL_FILE
 TRAIN_MODULE = 'hybrid_models.cli.train'
 LAUNCHER_MODULE = 'hybrid_models.training.launcher'
 PR_SET_PDEATHSIG = 1   # prctl(2): the signal a process gets when its parent dies
-PARENT_ENV = 'HYBRID_MODELS_TRAIN_PARENT'   # set by train_job: the tool's process id
+# The process id of the parent to end with: the tool's for its launcher, the launcher's
+# for each training it forks.
+PARENT_ENV = 'HYBRID_MODELS_TRAIN_PARENT'
 
 
 def die_with_parent() -> None:
     """
-    End this training with the tool that started it, if one did (Linux).
+    End this process with the parent ``PARENT_ENV`` names, if one is named (Linux).
 
     A tool stopped by a signal, or killed, must not leave trainings running on: they
-    would compete for the cores and write into runs a restarted tool trains again. A
-    training stopped this way resumes from its last epoch. Called by the training
-    itself at start (a ``preexec_fn`` would run Python in a forked multi-threaded tool).
+    would compete for the cores and write into runs a restarted tool trains again. The
+    launcher ends with the tool and each training with the launcher; a training stopped
+    this way resumes from its last epoch. Called by each at start, by the process itself
+    (a ``preexec_fn`` would run Python in a forked multi-threaded tool).
     """
     parent = os.environ.get(PARENT_ENV)
     if not parent or not sys.platform.startswith('linux'):
         return
     ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
-    if os.getppid() != int(parent):   # the tool ended before the line above
+    if os.getppid() != int(parent):   # the parent ended before the line above
         os.kill(os.getpid(), signal.SIGTERM)
 
 
