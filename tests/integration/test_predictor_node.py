@@ -247,6 +247,28 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
     response = call_when_ready([plan(0.0)], 5)
     assert response.success and predictor.alive(), response.message
 
+    # Beyond service_capacity (4) requests are answered busy, and those taken while every
+    # slot was held are answered without being read (vessel_ros_bridge.lean_take).
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    reports = []
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', reports.append, 10)
+
+    def unread():
+        values = {kv.key: kv.value for kv in reports[-1].status[0].values} if reports else {}
+        return int(values.get('service_busy_unread', 0)), int(values.get('service_busy', 0))
+
+    burst = Predict.Request(plans=[plan(0.1, n=90, step_period=10.0)] * 16, answer_period=30.0)
+    for _ in range(5):   # waves until one request was taken unread
+        futures = [client.call_async(burst) for _ in range(12)]
+        assert spin_until(ros_node, lambda fs=futures: all(f.done() for f in fs), 60)
+        answers = [f.result() for f in futures]
+        assert all(a.success or a.message.startswith(('busy', 'no forecast')) for a in answers)
+        spin_until(ros_node, lambda: False, 1.5)   # the next report
+        if unread()[0] > 0:
+            break
+    assert 0 < unread()[0] <= unread()[1], unread()
+
 
 def test_bad_inputs_are_rejected_counted_and_the_node_keeps_serving(launcher, ros_node):
     from diagnostic_msgs.msg import DiagnosticArray

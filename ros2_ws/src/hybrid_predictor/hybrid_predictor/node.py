@@ -20,11 +20,12 @@ topic has a mutually exclusive callback group of its own (one topic's samples st
 order) and only reads, checks and stores samples; forecasting runs in a group of its
 own, woken by a guard condition; ``~/predict`` is reentrant but admits at most
 ``service_capacity`` requests at a time and answers the rest "busy" at once, before
-taking any lock the other threads hold; /clock, parameters and /diagnostics keep the
-default group. None of them waits for another, so no input callback starves: rclpy
-offers a group's ready subscriptions in a fixed order, and when the inputs shared one
-group a state topic the node could not keep up with won every turn and held the
-actuators back (a what-if refused for "actuators silent" behind a simulator at 10x).
+taking any lock the other threads hold, and without reading them (``lean_take``);
+/clock, parameters and /diagnostics keep the default group. None of them waits for
+another, so no input callback starves: rclpy offers a group's ready subscriptions in a
+fixed order, and when the inputs shared one group a state topic the node could not keep
+up with won every turn and held the actuators back (a what-if refused for "actuators
+silent" behind a simulator at 10x).
 
 Health is judged on two clocks (``health``): message time and a steady wall clock, so a
 paused or dead source under use_sim_time, which stops /clock with it, is ERROR too. The
@@ -87,6 +88,7 @@ from vessel_description import VesselError
 from vessel_physics import frames
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.executors import MultiThreadedExecutor
+from vessel_ros_bridge.lean_take import TAKEN, AdmittingType
 from vessel_ros_bridge.lifecycle import run_node
 from vessel_ros_bridge.names import node_topic
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
@@ -191,11 +193,13 @@ class PredictorNode(Node):
         # One what-if batch at a time: the engine already spreads a batch over the cores.
         self.batch_lock = threading.Lock()
         self.service_slots = threading.BoundedSemaphore(p['service_capacity'])
+        self.admitted = 0   # requests holding a slot; read without a lock as a hint
         self.input_event = threading.Event()
         self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
                        0, 'clock_resets': 0, 'service_requests': 0, 'service_busy': 0,
-                       'service_failed': 0, 'forecasts_before_sample_complete': 0}
+                       'service_busy_unread': 0, 'service_failed': 0,
+                       'forecasts_before_sample_complete': 0}
         self.latest_plan: tuple[ControlPlan, dict] | None = None
         self.pending: Pending | None = None
         # A scheduled state whose actuator or wind samples had not arrived when its wait
@@ -233,8 +237,14 @@ class PredictorNode(Node):
         # (keep-last would drop the oldest unread ones silently).
         service_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL,
                                  reliability=ReliabilityPolicy.RELIABLE)
-        self.create_service(Predict, '~/predict', self._on_predict, qos_profile=service_qos,
-                            callback_group=ReentrantCallbackGroup())
+        service = self.create_service(Predict, '~/predict', self._on_predict,
+                                      qos_profile=service_qos,
+                                      callback_group=ReentrantCallbackGroup())
+        # A request taken while every slot is held is answered busy without being read:
+        # taken without its contents (lean_take), 0.16 ms instead of 1-1.5 ms of the GIL
+        # for 64 plans, at a hundred such requests a second under the soak.
+        service.srv_type = AdmittingType(
+            Predict, lambda: self.admitted < self.p['service_capacity'])
         self.diag_timer = self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.jump_handle = None
@@ -623,10 +633,12 @@ class PredictorNode(Node):
     def _on_predict(self, request, response):
         # Admission first, then a counter under a lock of its own: a "busy" answer never
         # waits for a window assembly, a forecast or a batch in progress.
-        admitted = self.service_slots.acquire(blocking=False)
+        admitted = request is not TAKEN and self.service_slots.acquire(blocking=False)
         with self.count_lock:
             self.counts['service_requests'] += 1
             self.counts['service_busy'] += not admitted
+            self.counts['service_busy_unread'] += request is TAKEN
+            self.admitted += admitted
         if not admitted:
             response.success = False
             response.message = (f'busy: {self.p["service_capacity"]} requests in progress; '
@@ -639,6 +651,8 @@ class PredictorNode(Node):
             self.get_logger().error(f'~/predict failed: {exc!r}')
             response.success, response.message = False, f'internal error: {exc}'
         finally:
+            with self.count_lock:
+                self.admitted -= 1
             self.service_slots.release()
         if not response.success:
             response.forecasts = []
