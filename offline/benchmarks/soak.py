@@ -13,7 +13,8 @@ Figures: the request's and a successful answer's size; requests sent, answered
 (success, busy or another failure) and never answered; p50/p99 latency; forecasts
 published during the soak and the longest silence between them, in message time
 (forecast periods) and wall time; how many /diagnostics reports said ERROR or WARN
-meanwhile, and why; the predictor's resident memory at the start, after
+meanwhile, and why; the predictor's own service counts from its last report (requests,
+busy, busy unread, failed); the predictor's resident memory at the start, after
 the warm-up (the first tenth of the soak, at most 60 s: buffers and caches filling),
 at the end, and 20 samples in between (growth that levels off, or keeps on).
 """
@@ -220,8 +221,14 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     node.create_subscription(Forecast, '/vessel/forecast', lambda m: forecasts.append(
         (time.monotonic(), seconds_from_stamp(m.header.stamp))), 50)
     reports: list[tuple[float, int, str]] = []   # (wall s, level, message)
-    node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: reports.extend(
-        (time.monotonic(), s.level[0], s.message) for s in m.status), 50)
+    service_counts: dict[str, str] = {}   # the node's own, from its newest report
+
+    def on_diagnostics(msg) -> None:
+        reports.extend((time.monotonic(), s.level[0], s.message) for s in msg.status)
+        service_counts.update({kv.key: kv.value for s in msg.status for kv in s.values
+                               if kv.key.startswith('service_')})
+
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 50)
     load = Load(node, clients, concurrency, shape, busy_backoff)
     spinner.start()
     try:
@@ -250,6 +257,10 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         # Every request sent must come back; give the last ones time to.
         settle = time.monotonic() + 30
         while load.answered < load.sent and time.monotonic() < settle:
+            time.sleep(0.1)
+        # One report more, so the node's counts include the last answers.
+        settled = time.monotonic()
+        while time.monotonic() < settled + 5 and not (reports and reports[-1][0] > settled):
             time.sleep(0.1)
         alive = predictor.poll() is None
     finally:
@@ -309,6 +320,7 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'diagnostics_warn_reports': sum(level == 1 for level, _ in during_reports),
         'diagnostics_error_messages': sorted({m for level, m in during_reports
                                               if level == 2})[:5],
+        'predictor_service_counts': {k: int(v) for k, v in sorted(service_counts.items())},
         'predictor_alive': alive,
         'goals': GOALS,
     }

@@ -65,3 +65,8 @@ def test_a_service_soak_answers_every_request_while_forecasts_flow(tmp_path):
     assert result['predictor_alive'], result
     assert result['longest_silence_periods'] <= 2.0, result
     assert result['forecasts_published'] >= 0.5 * result['duration_s'], result
+    # The node's own counts agree with the clients', and refusals were taken unread.
+    counts = result['predictor_service_counts']
+    assert counts['service_requests'] == result['requests_sent'], counts
+    assert counts['service_busy'] == result['requests_busy'], counts
+    assert 0 < counts['service_busy_unread'] <= counts['service_busy'], counts
