@@ -31,9 +31,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _one_process_each(toy: Path, out: Path, count: int) -> float:
+    from hybrid_models.training.jobs import TRAIN_MODULE
+
     start = time.perf_counter()
     for i in range(count):
-        cmd = [sys.executable, '-m', 'hybrid_models.cli.train', str(SMOKE), '--out',
+        cmd = [sys.executable, '-m', TRAIN_MODULE, str(SMOKE), '--out',
                str(out / f'run{i}'), '--quiet'] + sum(
             (['--set', s] for s in [f'dataset={toy}', f'training.seed={i}', *SHORT]), [])
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

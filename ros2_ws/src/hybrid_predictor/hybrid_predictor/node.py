@@ -187,13 +187,14 @@ class PredictorNode(Node):
         # figures, which the input, forecast, service and clock threads share; held only
         # briefly, but a window assembly takes milliseconds under it.
         self.lock = threading.Lock()
-        # Guards the counters alone: a "busy" answer counts itself without waiting for a
-        # window assembly or a forecast in progress.
+        # Guards the counters and admission alone: a "busy" answer counts itself without
+        # waiting for a window assembly or a forecast in progress.
         self.count_lock = threading.Lock()
         # One what-if batch at a time: the engine already spreads a batch over the cores.
         self.batch_lock = threading.Lock()
-        self.service_slots = threading.BoundedSemaphore(p['service_capacity'])
-        self.admitted = 0   # requests holding a slot; read without a lock as a hint
+        # Requests admitted (at most service_capacity); the service's take reads it
+        # without the lock, as a hint.
+        self.admitted = 0
         self.input_event = threading.Event()
         self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
@@ -631,14 +632,14 @@ class PredictorNode(Node):
         return path
 
     def _on_predict(self, request, response):
-        # Admission first, then a counter under a lock of its own: a "busy" answer never
-        # waits for a window assembly, a forecast or a batch in progress.
-        admitted = request is not TAKEN and self.service_slots.acquire(blocking=False)
+        # Admission under a lock of its own: a "busy" answer never waits for a window
+        # assembly, a forecast or a batch in progress.
         with self.count_lock:
+            admitted = request is not TAKEN and self.admitted < self.p['service_capacity']
+            self.admitted += admitted
             self.counts['service_requests'] += 1
             self.counts['service_busy'] += not admitted
             self.counts['service_busy_unread'] += request is TAKEN
-            self.admitted += admitted
         if not admitted:
             response.success = False
             response.message = (f'busy: {self.p["service_capacity"]} requests in progress; '
@@ -653,7 +654,6 @@ class PredictorNode(Node):
         finally:
             with self.count_lock:
                 self.admitted -= 1
-            self.service_slots.release()
         if not response.success:
             response.forecasts = []
             with self.count_lock:

@@ -10,7 +10,7 @@ C functions except the conversion to Python, which returns ``TAKEN``.
 
 Both steps are rclpy's (Jazzy, 7.x): its take looks up ``_CREATE_ROS_MESSAGE``,
 ``_DESTROY_ROS_MESSAGE`` and ``_CONVERT_TO_PY`` on the class's metaclass, a capsule
-holding ``PyObject *convert(void *ros_message)``; ``tests/unit/test_lean_take.py``
+holding ``PyObject *convert(void *ros_message)``; ``tests/integration/test_lean_take.py``
 checks this still holds.
 """
 
@@ -61,7 +61,7 @@ def lean_type(message_class: type) -> type:
 
 class AdmittingType:
     """
-    A service type as an executor sees it, taking requests lean while none is admitted.
+    A service type as an executor sees it, taking requests lean while it admits none.
 
     ``Request`` is the real class while ``admits()`` is true, the lean stand-in
     otherwise; everything else is the type's. Set as a service's ``srv_type`` after it
