@@ -79,6 +79,7 @@ def main(argv=None) -> int:
     import rclpy
 
     from hybrid_predictor.plan_message import control_plan
+    from hybrid_predictor.what_if_client import ask
     from hybrid_predictor_interfaces.srv import Predict
     from vessel_description import load_vessel
 
@@ -93,9 +94,7 @@ def main(argv=None) -> int:
             return 2
         request = Predict.Request(plans=[control_plan(vessel, p, plan_id=f'candidate-{i}')
                                          for i, p in enumerate(plans)])
-        future = client.call_async(request)
-        rclpy.spin_until_future_complete(node, future, timeout_sec=60.0)
-        answer = future.result()
+        answer = ask(node, client, request, timeout=60.0)   # busy: comes back as told
     finally:
         node.destroy_node()
         rclpy.try_shutdown()

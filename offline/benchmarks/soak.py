@@ -8,7 +8,9 @@ listens to /vessel/forecast. Plans hold each row for ``--plan-period`` seconds a
 answers carry every ``--answer-period`` seconds' step (10 s each by default over the
 patrol boat's 15-minute horizon, what a controller ranking plans needs; 0 sends and
 receives every 1 s step, ten times the bytes). A client answered "busy" waits
-``--busy-backoff`` seconds before it sends again, as a well-behaved client does.
+``--busy-backoff`` seconds before it sends again, as a well-behaved client does, or
+(``--busy-backoff retry_after``) the answer's ``retry_after`` and up to a tenth more at
+random, as a client that follows the node's hint does.
 Figures: the request's and a successful answer's size; requests sent, answered
 (success, busy or another failure) and never answered; p50/p99 latency; forecasts
 published during the soak and the longest silence between them, in message time
@@ -21,8 +23,10 @@ at the end, and 20 samples in between (growth that levels off, or keeps on).
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 from pathlib import Path
+import random
 import threading
 import time
 
@@ -37,6 +41,20 @@ WINDOW_S = 60.0   # the patrol boat's window: the simulator must run this long f
 # client filtering its own: the response queue must hold all requests in flight.
 RESPONSE_DEPTH = 1000
 RSS_SAMPLES = 20  # evenly spaced over the soak: growth that levels off or keeps on
+FOLLOW_HINT = 'retry_after'
+
+
+def backoff(text: str) -> float | str:
+    """Return ``--busy-backoff``: seconds (>= 0), or FOLLOW_HINT."""
+    if text == FOLLOW_HINT:
+        return text
+    try:
+        seconds = float(text)
+    except ValueError:
+        seconds = -1.0
+    if not seconds >= 0:
+        raise argparse.ArgumentTypeError(f'takes seconds >= 0 or {FOLLOW_HINT!r}, got {text!r}')
+    return seconds
 
 
 def add_arguments(parser) -> None:
@@ -58,8 +76,10 @@ def add_arguments(parser) -> None:
                         help='simulator speed, times real time (default 1: a vessel)')
     parser.add_argument('--forecast-period', type=float, default=1.0,
                         help="the predictor's forecast_period, s of message time (default 1)")
-    parser.add_argument('--busy-backoff', type=float, default=0.2,
-                        help='seconds a client waits after a busy answer (default 0.2)')
+    parser.add_argument('--busy-backoff', type=backoff, default=0.2,
+                        help='seconds a client waits after a busy answer, or '
+                             f'"{FOLLOW_HINT}": the answer\'s retry_after and up to a '
+                             'tenth more at random (default 0.2)')
     parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
                         help='another predictor parameter (repeatable)')
 
@@ -109,7 +129,7 @@ class Load:
     """Clients that keep requests in flight and count what comes back."""
 
     def __init__(self, node, clients: int, concurrency: int, shape: RequestShape,
-                 busy_backoff: float):
+                 busy_backoff: float | str):
         from rclpy.qos import QoSProfile
 
         from hybrid_predictor_interfaces.srv import Predict
@@ -163,10 +183,18 @@ class Load:
                 self.failures[key] = self.failures.get(key, 0) + 1
         if time.monotonic() >= self.deadline:
             return
-        if busy and self.busy_backoff > 0:
-            threading.Timer(self.busy_backoff, self._send, [client]).start()
+        wait = self.wait_after_busy(response) if busy else 0.0
+        if wait > 0:
+            threading.Timer(wait, self._send, [client]).start()
         else:
             self._send(client)
+
+    def wait_after_busy(self, response) -> float:
+        """Return the seconds to wait after a busy answer before sending again."""
+        if self.busy_backoff == FOLLOW_HINT:
+            # Jitter, so clients given one time do not come back in one burst.
+            return response.retry_after * (1.0 + 0.1 * random.random())
+        return self.busy_backoff
 
     @staticmethod
     def kb(message) -> float | None:
@@ -182,7 +210,7 @@ class Load:
 
 
 def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, rtf: float,
-         forecast_period: float = 1.0, busy_backoff: float = 0.2,
+         forecast_period: float = 1.0, busy_backoff: float | str = 0.2,
          log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
     """Run the soak (see the module docstring) and return its figures."""
     from vessel_bringup.processes import Children
@@ -196,7 +224,7 @@ def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, r
 
 
 def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: int,
-          shape: RequestShape, rtf: float, forecast_period: float, busy_backoff: float,
+          shape: RequestShape, rtf: float, forecast_period: float, busy_backoff: float | str,
           predictor_params) -> dict:
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
@@ -283,7 +311,7 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'plan_period_s': shape.plan_period, 'answer_period_s': shape.answer_period,
         'request_kb': load.kb(load.request),
         'success_answer_kb': load.kb(load.first_success),
-        'simulator_rtf': rtf, 'busy_backoff_s': busy_backoff,
+        'simulator_rtf': rtf, 'busy_backoff': busy_backoff,
         'requests_sent': load.sent,
         'requests_answered': load.answered,
         'requests_success': load.success,

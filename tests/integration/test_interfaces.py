@@ -20,10 +20,12 @@ def make_plan(shaft_speed):
                        values=[x for row in values for x in row])
 
 
-def call(node, client, request, timeout=15.0):
-    future = client.call_async(request)
-    assert spin_until(node, future.done, timeout), 'no service response'
-    return future.result()
+def call(node, client, request):
+    from hybrid_predictor.what_if_client import ask
+
+    answer = ask(node, client, request, timeout=30.0, resend_after=5.0)
+    assert answer is not None, 'no service response'
+    return answer
 
 
 def test_predict_round_trip_answers_one_forecast_per_plan(launcher, ros_node):

@@ -183,6 +183,7 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
 
 
 def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, ros_node):
+    from hybrid_predictor.what_if_client import ask, is_busy
     from hybrid_predictor_interfaces.msg import ControlPlan
     from hybrid_predictor_interfaces.srv import Predict
 
@@ -196,9 +197,10 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
                            values=[shaft, rudder, rudder] * n, step_period=step_period)
 
     def call(plans, answer_period=0.0):
-        future = client.call_async(Predict.Request(plans=plans, answer_period=answer_period))
-        assert spin_until(ros_node, future.done, 30), 'no response'
-        return future.result()
+        answer = ask(ros_node, client, Predict.Request(plans=plans, answer_period=answer_period),
+                     timeout=30.0)
+        assert answer is not None, 'no response'
+        return answer
 
     def call_when_ready(plans, attempts, answer_period=0.0):
         # "no forecast" answers are the window's state, not the plans': until it has
@@ -264,6 +266,13 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
         assert spin_until(ros_node, lambda fs=futures: all(f.done() for f in fs), 60)
         answers = [f.result() for f in futures]
         assert all(a.success or a.message.startswith(('busy', 'no forecast')) for a in answers)
+        # Busy answers say when to come back (max_retry_after 5 s), each refused client
+        # a later time than the one before it; every other answer says 0.
+        hints = [a.retry_after for a in answers if is_busy(a)]
+        assert all(0 <= h <= 5.0 for h in hints) and (not hints or max(hints) > 0), hints
+        below_cap = [h for h in hints if 0 < h < 5.0]
+        assert len(set(below_cap)) == len(below_cap), hints
+        assert all(a.retry_after == 0 for a in answers if not is_busy(a))
         spin_until(ros_node, lambda: False, 1.5)   # the next report
         if unread()[0] > 0:
             break

@@ -20,7 +20,8 @@ topic has a mutually exclusive callback group of its own (one topic's samples st
 order) and only reads, checks and stores samples; forecasting runs in a group of its
 own, woken by a guard condition; ``~/predict`` is reentrant but admits at most
 ``service_capacity`` requests at a time and answers the rest "busy" at once, before
-taking any lock the other threads hold, and without reading them (``lean_take``);
+taking any lock the other threads hold, and without reading them (``lean_take``),
+with the time to come back (``retry_hint``);
 /clock, parameters and /diagnostics keep the default group. None of them waits for
 another, so no input callback starves: rclpy offers a group's ready subscriptions in a
 fixed order, and when the inputs shared one group a state topic the node could not keep
@@ -77,6 +78,7 @@ from hybrid_predictor.plans import (
     track,
 )
 from hybrid_predictor.plausibility import forecast_problem
+from hybrid_predictor.retry_hint import RetryHint
 from hybrid_predictor.schedule import ForecastSchedule
 from hybrid_predictor.skill import LiveSkill, Settings
 from hybrid_predictor.vessel_source import served_vessel
@@ -195,6 +197,7 @@ class PredictorNode(Node):
         # Requests admitted (at most service_capacity); the service's take reads it
         # without the lock, as a hint.
         self.admitted = 0
+        self.retry_hint = RetryHint(longest=p['max_retry_after'])   # under count_lock
         self.input_event = threading.Event()
         self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
@@ -634,16 +637,22 @@ class PredictorNode(Node):
     def _on_predict(self, request, response):
         # Admission under a lock of its own: a "busy" answer never waits for a window
         # assembly, a forecast or a batch in progress.
+        now = time.monotonic()
         with self.count_lock:
             admitted = request is not TAKEN and self.admitted < self.p['service_capacity']
             self.admitted += admitted
             self.counts['service_requests'] += 1
             self.counts['service_busy'] += not admitted
             self.counts['service_busy_unread'] += request is TAKEN
+            if admitted:
+                self.retry_hint.admitted(now)
+            else:
+                retry_after = self.retry_hint.refused(now)
         if not admitted:
             response.success = False
+            response.retry_after = retry_after
             response.message = (f'busy: {self.p["service_capacity"]} requests in progress; '
-                                f'retry later')
+                                f'retry in {retry_after:.2f} s')
             return response
         try:
             response.success, response.message, response.forecasts = self._predict(
@@ -654,6 +663,7 @@ class PredictorNode(Node):
         finally:
             with self.count_lock:
                 self.admitted -= 1
+                self.retry_hint.finished(now, time.monotonic())
         if not response.success:
             response.forecasts = []
             with self.count_lock:
