@@ -132,10 +132,12 @@ class Load:
                  busy_backoff: float | str):
         from rclpy.qos import QoSProfile
 
+        from hybrid_predictor.what_if_client import is_busy
         from hybrid_predictor_interfaces.srv import Predict
 
         qos = QoSProfile(depth=max(RESPONSE_DEPTH, 2 * clients * concurrency))
         self.busy_backoff = busy_backoff
+        self.is_busy = is_busy
         self.clients = [node.create_client(Predict, '/vessel/predictor/predict', qos_profile=qos)
                         for _ in range(clients)]
         self.request = Predict.Request(plans=make_plans(shape.plans, shape.plan_period),
@@ -166,7 +168,7 @@ class Load:
 
     def _answered(self, client, future, sent_at: float) -> None:
         response = future.result()
-        busy = not response.success and response.message.startswith('busy')
+        busy = self.is_busy(response)
         with self.lock:
             self.latencies.append(time.monotonic() - sent_at)
             if response.success:

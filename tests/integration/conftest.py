@@ -180,6 +180,15 @@ def spin_until(node, predicate, timeout: float) -> bool:
     return predicate()
 
 
+def answer_of(node, client, request, timeout: float = 30.0, resend_after: float = 10.0):
+    """Return the first ~/predict answer that is not busy (``what_if_client.ask``)."""
+    from hybrid_predictor.what_if_client import ask
+
+    answer = ask(node, client, request, timeout=timeout, resend_after=resend_after)
+    assert answer is not None, 'no service response'
+    return answer
+
+
 def wait_for(predicate, timeout: float) -> bool:
     """Poll predicate() until true or timeout seconds pass; return predicate()."""
     deadline = time.monotonic() + timeout

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from .conftest import spin_until
+from .conftest import answer_of, spin_until
 
 pytestmark = pytest.mark.ros
 
@@ -183,7 +183,7 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
 
 
 def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, ros_node):
-    from hybrid_predictor.what_if_client import ask, is_busy
+    from hybrid_predictor.what_if_client import is_busy
     from hybrid_predictor_interfaces.msg import ControlPlan
     from hybrid_predictor_interfaces.srv import Predict
 
@@ -197,10 +197,8 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
                            values=[shaft, rudder, rudder] * n, step_period=step_period)
 
     def call(plans, answer_period=0.0):
-        answer = ask(ros_node, client, Predict.Request(plans=plans, answer_period=answer_period),
-                     timeout=30.0)
-        assert answer is not None, 'no response'
-        return answer
+        return answer_of(ros_node, client,
+                         Predict.Request(plans=plans, answer_period=answer_period))
 
     def call_when_ready(plans, attempts, answer_period=0.0):
         # "no forecast" answers are the window's state, not the plans': until it has

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from .conftest import REPO, spin_until
+from .conftest import REPO, answer_of, spin_until
 
 pytestmark = pytest.mark.ros
 
@@ -128,7 +128,6 @@ def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launc
     # What-if in the vessel's own controls: two plans, one batch, each answered; the
     # same plan with a wrong unit is refused in one line.
     from hybrid_predictor.plan_message import control_plan
-    from hybrid_predictor.what_if_client import ask
     from hybrid_predictor_interfaces.srv import Predict
 
     client = ros_node.create_client(Predict, '/vessel/predictor/predict')
@@ -140,16 +139,11 @@ def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launc
     wrong = control_plan(boat, np.tile(low, (boat.horizon, 1)))
     wrong.control_units[0] = 'rpm'
 
-    def call(request_plans):
-        answer = ask(ros_node, client, Predict.Request(plans=request_plans), timeout=30.0)
-        assert answer is not None, 'no response'
-        return answer
-
-    answer = call(plans)
+    answer = answer_of(ros_node, client, Predict.Request(plans=plans))
     assert answer.success, answer.message
     assert [list(f.control_names) for f in answer.forecasts] == [list(boat.control_names)] * 2
     assert not np.allclose(answer.forecasts[0].hybrid, answer.forecasts[1].hybrid)
-    refused = call([wrong])
+    refused = answer_of(ros_node, client, Predict.Request(plans=[wrong]))
     assert not refused.success and f"{boat.actuator_names[0]} in 'rpm'" in refused.message
 
 

@@ -52,8 +52,8 @@ def ask(node, client, request, timeout: float = 60.0, resend_after: float = 10.0
             answer = future.result()
             if not is_busy(answer):
                 return answer
-            come_back = time.monotonic() + answer.retry_after
-            while time.monotonic() < min(come_back, deadline):
+            come_back = min(time.monotonic() + answer.retry_after, deadline)
+            while time.monotonic() < come_back:
                 executor.spin_once(timeout_sec=max(0.0, come_back - time.monotonic()))
         return answer
     finally:
