@@ -160,6 +160,10 @@ class Load:
                 self._send(client)
 
     def _send(self, client) -> None:
+        # A back-off timer may fire after the load ended (retry_after can be seconds):
+        # its request would go out after the soak stopped waiting for answers.
+        if time.monotonic() >= self.deadline:
+            return
         with self.lock:
             self.sent += 1
         sent_at = time.monotonic()
