@@ -11,8 +11,12 @@ receives every 1 s step, ten times the bytes). A client answered "busy" waits
 ``--busy-backoff`` seconds before it sends again, as a well-behaved client does, or
 (``--busy-backoff retry_after``) the answer's ``retry_after`` and up to a tenth more at
 random, as a client that follows the node's hint does.
+The soak's own process asks with the what-if client's Fast DDS profile
+(``hybrid_predictor.middleware.use_client_profile``), as a controller should.
 Figures: the request's and a successful answer's size; requests sent, answered
-(success, busy or another failure) and never answered; p50/p99 latency; forecasts
+(success, busy or another failure) and never answered; p50/p99 latency, and for "busy"
+answers where it went (``busy_stages_ms``: to the node and through it, back over DDS,
+queued in this process, taken, handed to the callback); forecasts
 published during the soak and the longest silence between them, in message time
 (forecast periods) and wall time; how many /diagnostics reports said ERROR or WARN
 meanwhile, and why; the predictor's own service counts from its last report (requests,
@@ -25,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
+import os
 from pathlib import Path
 import random
 import threading
@@ -148,6 +153,8 @@ class Load:
         self.latencies: list[float] = []
         self.success_latencies: list[float] = []
         self.busy_latencies: list[float] = []
+        # (sent, response written by the node, received by DDS here, taken, done), ns
+        self.busy_stages: list[tuple[int, ...]] = []
         self.failures: dict[str, int] = {}
         self.deadline = 0.0
         self.first_success = None   # a successful answer, kept to give its size
@@ -167,10 +174,12 @@ class Load:
         with self.lock:
             self.sent += 1
         sent_at = time.monotonic()
+        sent_ns = time.time_ns()
         future = client.call_async(self.request)
-        future.add_done_callback(lambda f: self._answered(client, f, sent_at))
+        future.add_done_callback(lambda f: self._answered(client, f, sent_at, sent_ns))
 
-    def _answered(self, client, future, sent_at: float) -> None:
+    def _answered(self, client, future, sent_at: float, sent_ns: int) -> None:
+        done_ns = time.time_ns()
         response = future.result()
         busy = self.is_busy(response)
         with self.lock:
@@ -183,6 +192,9 @@ class Load:
             elif busy:
                 self.busy += 1
                 self.busy_latencies.append(time.monotonic() - sent_at)
+                stages = getattr(future, 'stages_ns', None)
+                if stages is not None:
+                    self.busy_stages.append((sent_ns, *stages, done_ns))
             else:
                 self.failed += 1
                 key = response.message[:60]
@@ -215,6 +227,64 @@ class Load:
         return self.success + self.busy + self.failed
 
 
+STAGES = ('to the node and through it', 'back over DDS', 'queued in the client',
+          'taken (deserialized)', 'to the done callback')
+
+
+def stage_figures(stages: list[tuple[int, ...]]) -> dict:
+    """
+    Return p50/p99 (ms) of each stage of the answers, and of the stages of the slowest 1 %.
+
+    ``stages`` rows: (sent, written by the node, received, take begun, taken, done), ns.
+    """
+    if not stages:
+        return {}
+    times = np.diff(np.asarray(stages, dtype=np.int64), axis=1) / 1e6
+    total = times.sum(axis=1)
+    slow = times[total >= np.percentile(total, 99)]
+    return {name: {'p50': round(float(np.percentile(times[:, i], 50)), 1),
+                   'p99': round(float(np.percentile(times[:, i], 99)), 1),
+                   'mean_in_slowest_1_percent': round(float(slow[:, i].mean()), 1)}
+            for i, name in enumerate(STAGES)}
+
+
+def staged_executor(threads: int, context):
+    """
+    Return the soak's executor: it marks each answer's future with ``stages_ns``.
+
+    (response written by the node, received by DDS in this process, take begun, taken),
+    ns of the system clock DDS stamps with: where a slow answer spent its time.
+    """
+    from rclpy.executors import InvalidHandle
+
+    from vessel_ros_bridge.executors import MultiThreadedExecutor
+
+    class StagedExecutor(MultiThreadedExecutor):
+        def _take_client(self, client):
+            begun = time.time_ns()
+            try:
+                with client.handle:
+                    header, response = client.handle.take_response(client.srv_type.Response)
+            except InvalidHandle:
+                return None
+            taken = time.time_ns()
+
+            async def _execute():
+                if header is None:
+                    return
+                try:
+                    future = client.get_pending_request(header.request_id.sequence_number)
+                except KeyError:   # cancelled
+                    return
+                future.stages_ns = (header.source_timestamp, header.received_timestamp,
+                                    begun, taken)
+                future._set_executor(self)
+                future.set_result(response)
+            return _execute
+
+    return StagedExecutor(num_threads=threads, context=context)
+
+
 def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, rtf: float,
          forecast_period: float = 1.0, busy_backoff: float | str = 0.2,
          log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
@@ -236,8 +306,8 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     import rclpy
     from vessel_bringup.processes import rclpy_options
 
+    from hybrid_predictor.middleware import use_client_profile
     from hybrid_predictor_interfaces.msg import Forecast
-    from vessel_ros_bridge.executors import MultiThreadedExecutor
     from vessel_ros_bridge.messages import seconds_from_stamp
 
     children.node('ship_sim_node', 'simulator', params={'seed': 5, 'real_time_factor': rtf})
@@ -245,10 +315,13 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     predictor = children.node('hybrid_predictor', 'predictor', *extra, params={
         'use_sim_time': True, 'max_plans': max(shape.plans, 1),
         'forecast_period': forecast_period})
+    # This process asks as a controller would, with the what-if client's profile: set
+    # after the nodes started, so they keep their own.
+    client_middleware = use_client_profile(os.environ)
     context = rclpy.Context()
     rclpy.init(context=context, **rclpy_options())
     node = rclpy.create_node('soak_client', context=context)
-    executor = MultiThreadedExecutor(num_threads=4, context=context)
+    executor = staged_executor(4, context)
     executor.add_node(node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
     forecasts: list[tuple[float, float]] = []   # (wall s, stamp s)
@@ -313,11 +386,13 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     busy = np.asarray(load.busy_latencies) * 1e3
     return {
         'duration_s': round(ended - started, 1),
+        'busy_stages_ms': stage_figures(load.busy_stages),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': shape.plans,
         'plan_period_s': shape.plan_period, 'answer_period_s': shape.answer_period,
         'request_kb': load.kb(load.request),
         'success_answer_kb': load.kb(load.first_success),
         'simulator_rtf': rtf, 'busy_backoff': busy_backoff,
+        'client_middleware': client_middleware,
         'requests_sent': load.sent,
         'requests_answered': load.answered,
         'requests_success': load.success,
