@@ -76,8 +76,11 @@ def main(argv=None) -> int:
     parser.add_argument('--service', default='/vessel/predictor/predict')
     args = parser.parse_args(argv)
 
+    import os
+
     import rclpy
 
+    from hybrid_predictor.middleware import use_client_profile
     from hybrid_predictor.plan_message import control_plan
     from hybrid_predictor.what_if_client import ask
     from hybrid_predictor_interfaces.srv import Predict
@@ -85,6 +88,7 @@ def main(argv=None) -> int:
 
     vessel = load_vessel(args.vessel)
     plans = candidate_plans(vessel, vessel.horizon, args.plans)
+    use_client_profile(os.environ)   # room for the request in shared memory (before init)
     rclpy.init()
     node = rclpy.create_node('choose_plan')
     try:

@@ -8,7 +8,12 @@ requests the predictor's resident memory climbs with every new peak of answers i
 (measured: +23 % in 10 minutes after warm-up). ``config/fastdds_predictor.xml`` gives the
 service's endpoints DYNAMIC history memory (freed once delivered) and every other
 endpoint rmw_fastrtps' own defaults; every writer sends its heartbeats every 0.1 s
-(``vessel_ros_bridge.middleware``).
+(``vessel_ros_bridge.middleware``). Its shared-memory segment is 32 MiB, not 512 kB:
+answers in flight overwrote each other's unread buffers there, and a lost answer waited
+for its repair.
+
+A process that asks ~/predict calls ``use_client_profile`` before ``rclpy.init``: its
+requests in flight need the same room (``config/fastdds_what_if_client.xml``).
 
 A user's own Fast DDS configuration always wins (``vessel_ros_bridge.middleware``).
 """
@@ -21,6 +26,7 @@ from pathlib import Path
 from vessel_ros_bridge.middleware import use_profile
 
 PROFILE_FILE = 'fastdds_predictor.xml'
+CLIENT_PROFILE_FILE = 'fastdds_what_if_client.xml'
 
 
 def use_service_profile(environ: MutableMapping[str, str], config_dir: Path) -> str:
@@ -31,5 +37,21 @@ def use_service_profile(environ: MutableMapping[str, str], config_dir: Path) -> 
     ``rclpy.init`` (rmw reads the variables when it creates the endpoints).
     """
     return use_profile(environ, config_dir / PROFILE_FILE,
-                       'what-if answers in dynamic history memory, heartbeats every 0.1 s',
-                       qos_from_xml=True)
+                       'what-if answers in dynamic history memory, a 32 MiB shared-memory '
+                       'segment, heartbeats every 0.1 s', qos_from_xml=True)
+
+
+def use_client_profile(environ: MutableMapping[str, str], config_dir: Path | None = None) -> str:
+    """
+    Point Fast DDS at the what-if client's profile in ``environ`` unless the user set one.
+
+    For a process that sends ~/predict requests; ``config_dir`` defaults to the installed
+    package's. Return one line saying what was done. Must run before ``rclpy.init``.
+    """
+    if config_dir is None:
+        from vessel_ros_bridge.parameters import package_config
+
+        config_dir = package_config('hybrid_predictor', CLIENT_PROFILE_FILE).parent
+    return use_profile(environ, config_dir / CLIENT_PROFILE_FILE,
+                       'a 32 MiB shared-memory segment for requests in flight, heartbeats '
+                       'every 0.1 s')
