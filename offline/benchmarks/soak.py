@@ -11,8 +11,10 @@ receives every 1 s step, ten times the bytes). A client answered "busy" waits
 ``--busy-backoff`` seconds before it sends again, as a well-behaved client does, or
 (``--busy-backoff retry_after``) the answer's ``retry_after`` and up to a tenth more at
 random, as a client that follows the node's hint does.
-The soak's own process asks with the what-if client's Fast DDS profile
-(``hybrid_predictor.middleware.use_client_profile``), as a controller should.
+The clients ask with the what-if client's Fast DDS profile
+(``hybrid_predictor.middleware.use_client_profile``), as a controller should, from the
+soak's own process or (``--client-processes``) spread over processes of their own, as
+controllers are: each then writes its figures for the soak to merge.
 Figures: the request's and a successful answer's size; requests sent, answered
 (success, busy or another failure) and never answered; p50/p99 latency, and for "busy"
 answers where it went (``busy_stages_ms``: to the node and through it, back over DDS,
@@ -29,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
+import json
 import os
 from pathlib import Path
 import random
@@ -62,6 +65,17 @@ def backoff(text: str) -> float | str:
     return seconds
 
 
+def positive_int(text: str) -> int:
+    """Return an integer >= 1 from the command line."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1:
+        raise argparse.ArgumentTypeError(f'takes an integer >= 1, got {text!r}')
+    return value
+
+
 def add_arguments(parser) -> None:
     """Declare this suite's options."""
     parser.add_argument('--duration', type=float, default=600.0,
@@ -85,6 +99,10 @@ def add_arguments(parser) -> None:
                         help='seconds a client waits after a busy answer, or '
                              f'"{FOLLOW_HINT}": the answer\'s retry_after and up to a '
                              'tenth more at random (default 0.2)')
+    parser.add_argument('--client-processes', type=positive_int, default=1,
+                        help='processes the clients are spread over (default 1: all in '
+                             "the soak's own; --clients of them: one each, as "
+                             'controllers are)')
     parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
                         help='another predictor parameter (repeatable)')
 
@@ -92,8 +110,12 @@ def add_arguments(parser) -> None:
 def run(args) -> dict:
     """Run the soak with the command line's figures; return the JSON-ready result."""
     shape = RequestShape(args.plans, args.plan_period, args.answer_period)
+    if args.clients % args.client_processes:
+        raise SystemExit(f'soak: error: --clients {args.clients} cannot be spread evenly '
+                         f'over --client-processes {args.client_processes}')
     return soak(args.duration, args.clients, args.concurrency, shape, args.rtf,
-                args.forecast_period, args.busy_backoff, predictor_params=args.param)
+                args.forecast_period, args.busy_backoff, predictor_params=args.param,
+                client_processes=args.client_processes)
 
 
 @dataclass(frozen=True)
@@ -105,12 +127,18 @@ class RequestShape:
     answer_period: float = 10.0
 
 
-def rss_mb(pid: int) -> float:
-    """Resident memory of a process (MB), from /proc."""
+def rss_mb(pid: int, part: str = 'VmRSS') -> float:
+    """
+    Resident memory of a process (MB), from /proc: all of it, or one ``part``.
+
+    ``RssAnon`` is its private memory (what a leak grows), ``RssShmem`` the pages of
+    shared memory it has touched: Fast DDS's segments, its own and its peers', count as
+    resident as they fill, up to their size.
+    """
     for line in Path(f'/proc/{pid}/status').read_text().splitlines():
-        if line.startswith('VmRSS:'):
+        if line.startswith(f'{part}:'):
             return int(line.split()[1]) / 1024.0
-    raise RuntimeError(f'no VmRSS for process {pid}')
+    raise RuntimeError(f'no {part} for process {pid}')
 
 
 def make_plans(count: int, period: float = 0.0, seed: int = 0):
@@ -214,6 +242,30 @@ class Load:
             return response.retry_after * (1.0 + 0.1 * random.random())
         return self.busy_backoff
 
+    def settle(self, seconds: float) -> None:
+        """Wait up to ``seconds`` for every request sent to be answered."""
+        settle = time.monotonic() + seconds
+        while self.answered < self.sent and time.monotonic() < settle:
+            time.sleep(0.1)
+
+    def raw(self) -> dict:
+        """Return the counts and every latency, JSON-ready (``Merged`` reads them back)."""
+        return {'sent': self.sent, 'success': self.success, 'busy': self.busy,
+                'failed': self.failed, 'failures': self.failures,
+                'latencies': self.latencies, 'success_latencies': self.success_latencies,
+                'busy_latencies': self.busy_latencies, 'busy_stages': self.busy_stages,
+                'request_kb': self.request_kb, 'success_answer_kb': self.success_answer_kb}
+
+    @property
+    def request_kb(self) -> float | None:
+        """Return a request's size as it crosses DDS (kB)."""
+        return self.kb(self.request)
+
+    @property
+    def success_answer_kb(self) -> float | None:
+        """Return the first successful answer's size as it crosses DDS (kB)."""
+        return self.kb(self.first_success)
+
     @staticmethod
     def kb(message) -> float | None:
         """Return a message's size as it crosses DDS (kB, serialized); None for none."""
@@ -225,6 +277,128 @@ class Load:
     def answered(self) -> int:
         """Return the number of requests answered in any way."""
         return self.success + self.busy + self.failed
+
+
+class Merged:
+    """The figures of several client processes' ``Load.raw()``, as one Load gives them."""
+
+    def __init__(self, raws: list[dict]):
+        self.sent = sum(r['sent'] for r in raws)
+        self.success = sum(r['success'] for r in raws)
+        self.busy = sum(r['busy'] for r in raws)
+        self.failed = sum(r['failed'] for r in raws)
+        self.failures: dict[str, int] = {}
+        for r in raws:
+            for key, count in r['failures'].items():
+                self.failures[key] = self.failures.get(key, 0) + count
+        for name in ('latencies', 'success_latencies', 'busy_latencies', 'busy_stages'):
+            setattr(self, name, [x for r in raws for x in r[name]])
+        self.request_kb = next((r['request_kb'] for r in raws), None)
+        self.success_answer_kb = next((r['success_answer_kb'] for r in raws
+                                       if r['success_answer_kb'] is not None), None)
+
+    @property
+    def answered(self) -> int:
+        """Return the number of requests answered in any way."""
+        return self.success + self.busy + self.failed
+
+
+class ProcessLoads:
+    """
+    The clients spread over processes of their own, started now, loaded on ``begin``.
+
+    Each process (``client_main``) holds ``clients // processes`` clients, says it is
+    ready once its service is there, starts when told, and writes its ``Load.raw()``.
+    """
+
+    def __init__(self, children, log_dir: Path, processes: int, clients: int,
+                 concurrency: int, shape: RequestShape, busy_backoff: float | str):
+        import sys
+
+        self.dir = log_dir / 'clients'
+        self.dir.mkdir(parents=True, exist_ok=True)
+        for old in self.dir.iterdir():
+            old.unlink()
+        self.processes = [children.start(
+            [sys.executable, str(Path(__file__).resolve()), 'client',
+             '--clients', str(clients // processes), '--concurrency', str(concurrency),
+             '--plans', str(shape.plans), '--plan-period', str(shape.plan_period),
+             '--answer-period', str(shape.answer_period), '--busy-backoff', str(busy_backoff),
+             '--dir', str(self.dir), '--name', f'client{k}'], f'soak_client{k}')
+            for k in range(processes)]
+        self.merged: Merged | None = None
+
+    def begin(self, seconds: float, ready_within: float = 120.0) -> None:
+        """Wait until every process is ready, then start them all for ``seconds``."""
+        deadline = time.monotonic() + ready_within
+        while len(list(self.dir.glob('*.ready'))) < len(self.processes):
+            if any(p.poll() is not None for p in self.processes):
+                raise RuntimeError(f'a soak client exited; see {self.dir.parent}')
+            if time.monotonic() > deadline:
+                raise RuntimeError(f'soak clients not ready within {ready_within:.0f} s')
+            time.sleep(0.1)
+        (self.dir / 'start.tmp').write_text(f'{seconds}')
+        (self.dir / 'start.tmp').rename(self.dir / 'start')
+
+    def settle(self, seconds: float) -> None:
+        """Wait for every process to finish (each waits ``seconds`` for its answers)."""
+        for process in self.processes:
+            process.wait(timeout=seconds + 30)
+        self.merged = Merged([json.loads(f.read_text()) for f in sorted(
+            self.dir.glob('*.json'))])
+
+    def __getattr__(self, name: str):
+        if self.merged is None:
+            raise AttributeError(name)
+        return getattr(self.merged, name)
+
+
+def client_main(argv: list[str]) -> int:
+    """One soak client process: ``python soak.py client --help``."""
+    import rclpy
+    from vessel_bringup.processes import rclpy_options
+
+    from hybrid_predictor.middleware import use_client_profile
+
+    parser = argparse.ArgumentParser(prog='soak.py client',
+                                     description="One process of the soak's clients.")
+    parser.add_argument('--clients', type=positive_int, required=True)
+    parser.add_argument('--concurrency', type=positive_int, required=True)
+    parser.add_argument('--plans', type=positive_int, required=True)
+    parser.add_argument('--plan-period', type=float, required=True)
+    parser.add_argument('--answer-period', type=float, required=True)
+    parser.add_argument('--busy-backoff', type=backoff, required=True)
+    parser.add_argument('--dir', type=Path, required=True, help='where to meet the soak')
+    parser.add_argument('--name', required=True)
+    args = parser.parse_args(argv)
+    use_client_profile(os.environ)
+    context = rclpy.Context()
+    rclpy.init(context=context, **rclpy_options())
+    node = rclpy.create_node(f'soak_{args.name}', context=context)
+    executor = staged_executor(2, context)
+    executor.add_node(node)
+    load = Load(node, args.clients, args.concurrency,
+                RequestShape(args.plans, args.plan_period, args.answer_period),
+                args.busy_backoff)
+    threading.Thread(target=executor.spin, daemon=True).start()
+    try:
+        for client in load.clients:
+            client.wait_for_service(timeout_sec=30)
+        (args.dir / f'{args.name}.ready').touch()
+        while not (args.dir / 'start').exists():
+            time.sleep(0.01)
+        seconds = float((args.dir / 'start').read_text())
+        load.begin(seconds)
+        time.sleep(seconds)
+        load.settle(30)
+        out = args.dir / f'{args.name}.json.tmp'
+        out.write_text(json.dumps(load.raw()))
+        out.rename(args.dir / f'{args.name}.json')
+    finally:
+        executor.shutdown(timeout_sec=5)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    return 0
 
 
 STAGES = ('to the node and through it', 'back over DDS', 'queued in the client',
@@ -287,7 +461,8 @@ def staged_executor(threads: int, context):
 
 def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, rtf: float,
          forecast_period: float = 1.0, busy_backoff: float | str = 0.2,
-         log_dir: Path | None = None, predictor_params: tuple = ()) -> dict:
+         log_dir: Path | None = None, predictor_params: tuple = (),
+         client_processes: int = 1) -> dict:
     """Run the soak (see the module docstring) and return its figures."""
     from vessel_bringup.processes import Children
 
@@ -296,12 +471,12 @@ def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, r
     # SIGTERM or SIGHUP of this process (a `timeout` around it).
     with Children(log_dir) as children:
         return _soak(children, log_dir, duration, clients, concurrency, shape, rtf,
-                     forecast_period, busy_backoff, predictor_params)
+                     forecast_period, busy_backoff, predictor_params, client_processes)
 
 
 def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: int,
           shape: RequestShape, rtf: float, forecast_period: float, busy_backoff: float | str,
-          predictor_params) -> dict:
+          predictor_params, client_processes: int) -> dict:
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
     from vessel_bringup.processes import rclpy_options
@@ -336,7 +511,11 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
                                if kv.key.startswith('service_')})
 
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 50)
-    load = Load(node, clients, concurrency, shape, busy_backoff)
+    if client_processes > 1:
+        load = ProcessLoads(children, log_dir, client_processes, clients, concurrency, shape,
+                            busy_backoff)
+    else:
+        load = Load(node, clients, concurrency, shape, busy_backoff)
     spinner.start()
     try:
         deadline = time.monotonic() + 180 + WINDOW_S / rtf
@@ -346,25 +525,29 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
             time.sleep(0.2)
         if not forecasts:
             raise RuntimeError('no forecast within 180 s after the first window')
-        for client in load.clients:
+        for client in getattr(load, 'clients', ()):
             client.wait_for_service(timeout_sec=30)
         rss_start = rss_mb(predictor.pid)
+        private_start = rss_mb(predictor.pid, 'RssAnon')
+        load.begin(duration)   # client processes: once all are ready
         started = time.monotonic()
-        load.begin(duration)
         warm_at, rss_warm = started + min(0.1 * duration, 60.0), None
         trace_every, rss_trace = duration / RSS_SAMPLES, []
         while time.monotonic() < started + duration:
             time.sleep(0.2)
             if rss_warm is None and time.monotonic() >= warm_at:
                 rss_warm = rss_mb(predictor.pid)
+                private_warm = rss_mb(predictor.pid, 'RssAnon')
             if time.monotonic() >= started + trace_every * len(rss_trace):
                 rss_trace.append(round(rss_mb(predictor.pid), 1))
         ended = time.monotonic()
         rss_end = rss_mb(predictor.pid)
+        private_end, shared_end = (rss_mb(predictor.pid, part) for part in ('RssAnon',
+                                                                           'RssShmem'))
+        if rss_warm is None:
+            private_warm = private_end
         # Every request sent must come back; give the last ones time to.
-        settle = time.monotonic() + 30
-        while load.answered < load.sent and time.monotonic() < settle:
-            time.sleep(0.1)
+        load.settle(30)
         # One report more, so the node's counts include the last answers.
         settled = time.monotonic()
         while time.monotonic() < settled + 5 and not (reports and reports[-1][0] > settled):
@@ -389,10 +572,10 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'busy_stages_ms': stage_figures(load.busy_stages),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': shape.plans,
         'plan_period_s': shape.plan_period, 'answer_period_s': shape.answer_period,
-        'request_kb': load.kb(load.request),
-        'success_answer_kb': load.kb(load.first_success),
+        'request_kb': load.request_kb,
+        'success_answer_kb': load.success_answer_kb,
         'simulator_rtf': rtf, 'busy_backoff': busy_backoff,
-        'client_middleware': client_middleware,
+        'client_middleware': client_middleware, 'client_processes': client_processes,
         'requests_sent': load.sent,
         'requests_answered': load.answered,
         'requests_success': load.success,
@@ -421,6 +604,12 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'rss_after_warm_up_mb': round(rss_warm or rss_end, 1),
         'rss_end_mb': round(rss_end, 1),
         'rss_trace_mb': rss_trace,
+        'rss_private_start_mb': round(private_start, 1),
+        'rss_private_after_warm_up_mb': round(private_warm, 1),
+        'rss_private_end_mb': round(private_end, 1),
+        'rss_private_growth_after_warm_up_percent': round(
+            100.0 * (private_end - private_warm) / private_warm, 2),
+        'rss_shared_memory_end_mb': round(shared_end, 1),
         'rss_growth_percent': round(100.0 * (rss_end - rss_start) / rss_start, 2),
         'rss_growth_after_warm_up_percent': round(
             100.0 * (rss_end - (rss_warm or rss_end)) / (rss_warm or rss_end), 2),
@@ -433,3 +622,11 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'predictor_alive': alive,
         'goals': GOALS,
     }
+
+
+if __name__ == '__main__':
+    import sys
+
+    if sys.argv[1:2] != ['client']:
+        sys.exit('usage: python soak.py client --help (the soak itself: offline/bench.py soak)')
+    sys.exit(client_main(sys.argv[2:]))

@@ -21,7 +21,8 @@ from .conftest import REPO, wait_for
 
 pytestmark = pytest.mark.ros
 
-NODES = ('lib/ship_sim_node/simulator', 'lib/hybrid_predictor/predictor')
+NODES = ('lib/ship_sim_node/simulator', 'lib/hybrid_predictor/predictor',
+         'benchmarks/soak.py client')   # the soak's client processes
 BENCH = str(REPO / 'offline' / 'bench.py')
 
 
@@ -29,6 +30,9 @@ def tool_argv(tool: str, out: Path) -> list[str]:
     return {
         'soak': [sys.executable, BENCH, 'soak', '--duration', '120', '--rtf', '10',
                  '--forecast-period', '10'],
+        'soak-processes': [sys.executable, BENCH, 'soak', '--duration', '120', '--rtf', '10',
+                           '--forecast-period', '10', '--clients', '2',
+                           '--client-processes', '2'],
         'outage': [sys.executable, BENCH, 'outage', '--case', 'none', '--outage', '60',
                    '--log-dir', str(out)],
         'forecast': [sys.executable, BENCH, 'forecast', '--repeats', '2',
@@ -77,9 +81,10 @@ def test_a_tool_told_to_stop_stops_the_nodes_it_started(launcher, tmp_path, tool
     stop_and_check(launcher, tmp_path, tool, sig, nodes)
 
 
-@pytest.mark.slow  # four more tools and signals, about a minute
+@pytest.mark.slow  # five more tools and signals, about a minute
 @pytest.mark.parametrize('tool, sig, nodes', [
     ('soak', signal.SIGINT, 2),
+    ('soak-processes', signal.SIGTERM, 4),   # two nodes, two client processes
     ('demo', signal.SIGTERM, 1),
     ('outage', signal.SIGTERM, 2),
     ('forecast', signal.SIGTERM, 1),

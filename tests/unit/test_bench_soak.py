@@ -1,0 +1,43 @@
+"""The soak's figures when its clients run in processes of their own (offline/benchmarks/soak)."""
+
+import argparse
+
+import pytest
+
+from offline.benchmarks.soak import Merged, positive_int, stage_figures
+
+
+def raw(sent, success, busy, failed=0, failures=None, stages=()):
+    latencies = [0.5] * success + [0.01] * busy + [0.02] * failed
+    return {'sent': sent, 'success': success, 'busy': busy, 'failed': failed,
+            'failures': failures or {}, 'latencies': latencies,
+            'success_latencies': [0.5] * success, 'busy_latencies': [0.01] * busy,
+            'busy_stages': [list(s) for s in stages], 'request_kb': 145.4,
+            'success_answer_kb': 1652.3 if success else None}
+
+
+def test_processes_figures_add_up_as_one_clients_would():
+    merged = Merged([raw(10, 2, 7, 1, {'no forecast': 1}), raw(5, 0, 4, 1, {'no forecast': 1}),
+                     raw(3, 1, 2)])
+    assert (merged.sent, merged.success, merged.busy, merged.failed) == (18, 3, 13, 2)
+    assert merged.answered == 18
+    assert merged.failures == {'no forecast': 2}
+    assert len(merged.latencies) == 18 and len(merged.busy_latencies) == 13
+    # A process that had no success still lets another's answer give the size.
+    assert merged.success_answer_kb == 1652.3 and merged.request_kb == 145.4
+
+
+def test_busy_stages_of_every_process_are_judged_together():
+    fast = [(0, 1_000_000, 1_500_000, 2_000_000, 2_100_000, 3_000_000)] * 99
+    slow = [(0, 90_000_000, 91_000_000, 92_000_000, 92_100_000, 93_000_000)]
+    figures = stage_figures(Merged([raw(99, 0, 99, stages=fast),
+                                    raw(1, 0, 1, stages=slow)]).busy_stages)
+    node = figures['to the node and through it']
+    assert node['p50'] == 1.0
+    assert node['mean_in_slowest_1_percent'] == 90.0   # the slow one, from the other process
+
+
+@pytest.mark.parametrize('text', ['0', '-2', 'two', '1.5'])
+def test_a_count_below_one_is_refused_in_one_line(text):
+    with pytest.raises(argparse.ArgumentTypeError, match='integer >= 1'):
+        positive_int(text)
