@@ -127,18 +127,31 @@ class RequestShape:
     answer_period: float = 10.0
 
 
-def rss_mb(pid: int, part: str = 'VmRSS') -> float:
-    """
-    Resident memory of a process (MB), from /proc: all of it, or one ``part``.
+MEMORY_PARTS = ('VmRSS', 'RssAnon', 'RssShmem')
 
-    ``RssAnon`` is its private memory (what a leak grows), ``RssShmem`` the pages of
-    shared memory it has touched: Fast DDS's segments, its own and its peers', count as
-    resident as they fill, up to their size.
+
+def memory_mb(pid: int) -> dict[str, float]:
     """
+    Resident memory of a process (MB), from one read of /proc: all of it and two parts.
+
+    ``VmRSS`` all of it; ``RssAnon`` its private memory (what a leak grows); ``RssShmem``
+    the pages of shared memory it has touched: Fast DDS's segments, its own and its
+    peers', count as resident as they fill, up to their size.
+    """
+    found = {}
     for line in Path(f'/proc/{pid}/status').read_text().splitlines():
-        if line.startswith(f'{part}:'):
-            return int(line.split()[1]) / 1024.0
-    raise RuntimeError(f'no {part} for process {pid}')
+        name, _, value = line.partition(':')
+        if name in MEMORY_PARTS:
+            found[name] = int(value.split()[0]) / 1024.0
+    missing = [part for part in MEMORY_PARTS if part not in found]
+    if missing:
+        raise RuntimeError(f'no {", ".join(missing)} for process {pid}')
+    return found
+
+
+def growth(before: dict[str, float], after: dict[str, float], part: str) -> float:
+    """Return the growth of one part of ``memory_mb`` from ``before`` to ``after`` (%)."""
+    return round(100.0 * (after[part] - before[part]) / before[part], 2)
 
 
 def make_plans(count: int, period: float = 0.0, seed: int = 0):
@@ -248,6 +261,10 @@ class Load:
         while self.answered < self.sent and time.monotonic() < settle:
             time.sleep(0.1)
 
+    def figures(self) -> Load:
+        """Return what the soak reports from: this load itself."""
+        return self
+
     def raw(self) -> dict:
         """Return the counts and every latency, JSON-ready (``Merged`` reads them back)."""
         return {'sent': self.sent, 'success': self.success, 'busy': self.busy,
@@ -311,6 +328,8 @@ class ProcessLoads:
     ready once its service is there, starts when told, and writes its ``Load.raw()``.
     """
 
+    clients = ()   # none here: each process waits for the service itself
+
     def __init__(self, children, log_dir: Path, processes: int, clients: int,
                  concurrency: int, shape: RequestShape, busy_backoff: float | str):
         import sys
@@ -344,13 +363,17 @@ class ProcessLoads:
         """Wait for every process to finish (each waits ``seconds`` for its answers)."""
         for process in self.processes:
             process.wait(timeout=seconds + 30)
-        self.merged = Merged([json.loads(f.read_text()) for f in sorted(
-            self.dir.glob('*.json'))])
+        results = sorted(self.dir.glob('*.json'))
+        if len(results) < len(self.processes):   # a process's figures would be lost
+            raise RuntimeError(f'{len(self.processes) - len(results)} soak clients wrote no '
+                               f'figures; see {self.dir.parent}/soak_client*.log')
+        self.merged = Merged([json.loads(f.read_text()) for f in results])
 
-    def __getattr__(self, name: str):
+    def figures(self) -> Merged:
+        """Return the processes' figures together (after ``settle``)."""
         if self.merged is None:
-            raise AttributeError(name)
-        return getattr(self.merged, name)
+            raise RuntimeError('soak clients not settled yet')
+        return self.merged
 
 
 def client_main(argv: list[str]) -> int:
@@ -525,27 +548,22 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
             time.sleep(0.2)
         if not forecasts:
             raise RuntimeError('no forecast within 180 s after the first window')
-        for client in getattr(load, 'clients', ()):
+        for client in load.clients:
             client.wait_for_service(timeout_sec=30)
-        rss_start = rss_mb(predictor.pid)
-        private_start = rss_mb(predictor.pid, 'RssAnon')
+        memory_start = memory_mb(predictor.pid)
         load.begin(duration)   # client processes: once all are ready
         started = time.monotonic()
-        warm_at, rss_warm = started + min(0.1 * duration, 60.0), None
+        warm_at, memory_warm = started + min(0.1 * duration, 60.0), None
         trace_every, rss_trace = duration / RSS_SAMPLES, []
         while time.monotonic() < started + duration:
             time.sleep(0.2)
-            if rss_warm is None and time.monotonic() >= warm_at:
-                rss_warm = rss_mb(predictor.pid)
-                private_warm = rss_mb(predictor.pid, 'RssAnon')
+            if memory_warm is None and time.monotonic() >= warm_at:
+                memory_warm = memory_mb(predictor.pid)
             if time.monotonic() >= started + trace_every * len(rss_trace):
-                rss_trace.append(round(rss_mb(predictor.pid), 1))
+                rss_trace.append(round(memory_mb(predictor.pid)['VmRSS'], 1))
         ended = time.monotonic()
-        rss_end = rss_mb(predictor.pid)
-        private_end, shared_end = (rss_mb(predictor.pid, part) for part in ('RssAnon',
-                                                                           'RssShmem'))
-        if rss_warm is None:
-            private_warm = private_end
+        memory_end = memory_mb(predictor.pid)
+        memory_warm = memory_warm or memory_end
         # Every request sent must come back; give the last ones time to.
         load.settle(30)
         # One report more, so the node's counts include the last answers.
@@ -564,26 +582,27 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     stamp_gaps = np.diff(stamps) if len(stamps) > 1 else np.array([np.inf])
     during_reports = [(level, message) for w, level, message in reports
                       if started <= w <= ended]
-    latencies = np.asarray(load.latencies) * 1e3
-    successes = np.asarray(load.success_latencies) * 1e3
-    busy = np.asarray(load.busy_latencies) * 1e3
+    counted = load.figures()
+    latencies = np.asarray(counted.latencies) * 1e3
+    successes = np.asarray(counted.success_latencies) * 1e3
+    busy = np.asarray(counted.busy_latencies) * 1e3
     return {
         'duration_s': round(ended - started, 1),
-        'busy_stages_ms': stage_figures(load.busy_stages),
+        'busy_stages_ms': stage_figures(counted.busy_stages),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': shape.plans,
         'plan_period_s': shape.plan_period, 'answer_period_s': shape.answer_period,
-        'request_kb': load.request_kb,
-        'success_answer_kb': load.success_answer_kb,
+        'request_kb': counted.request_kb,
+        'success_answer_kb': counted.success_answer_kb,
         'simulator_rtf': rtf, 'busy_backoff': busy_backoff,
         'client_middleware': client_middleware, 'client_processes': client_processes,
-        'requests_sent': load.sent,
-        'requests_answered': load.answered,
-        'requests_success': load.success,
-        'requests_busy': load.busy,
-        'requests_failed_other': load.failed,
-        'failures': load.failures,
-        'requests_unanswered': load.sent - load.answered,
-        'answered_percent': round(100.0 * load.answered / max(load.sent, 1), 3),
+        'requests_sent': counted.sent,
+        'requests_answered': counted.answered,
+        'requests_success': counted.success,
+        'requests_busy': counted.busy,
+        'requests_failed_other': counted.failed,
+        'failures': counted.failures,
+        'requests_unanswered': counted.sent - counted.answered,
+        'answered_percent': round(100.0 * counted.answered / max(counted.sent, 1), 3),
         'latency_p50_ms': round(float(np.percentile(latencies, 50)), 1) if len(
             latencies) else None,
         'latency_p99_ms': round(float(np.percentile(latencies, 99)), 1) if len(
@@ -600,19 +619,17 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'longest_silence_periods': round(float(stamp_gaps.max()) / forecast_period, 2),
         'longest_silence_wall_s': round(float(wall_gaps.max()), 3),
         'forecast_period_wall_s': round(forecast_period / rtf, 3),
-        'rss_start_mb': round(rss_start, 1),
-        'rss_after_warm_up_mb': round(rss_warm or rss_end, 1),
-        'rss_end_mb': round(rss_end, 1),
+        'rss_start_mb': round(memory_start['VmRSS'], 1),
+        'rss_after_warm_up_mb': round(memory_warm['VmRSS'], 1),
+        'rss_end_mb': round(memory_end['VmRSS'], 1),
         'rss_trace_mb': rss_trace,
-        'rss_private_start_mb': round(private_start, 1),
-        'rss_private_after_warm_up_mb': round(private_warm, 1),
-        'rss_private_end_mb': round(private_end, 1),
-        'rss_private_growth_after_warm_up_percent': round(
-            100.0 * (private_end - private_warm) / private_warm, 2),
-        'rss_shared_memory_end_mb': round(shared_end, 1),
-        'rss_growth_percent': round(100.0 * (rss_end - rss_start) / rss_start, 2),
-        'rss_growth_after_warm_up_percent': round(
-            100.0 * (rss_end - (rss_warm or rss_end)) / (rss_warm or rss_end), 2),
+        'rss_private_start_mb': round(memory_start['RssAnon'], 1),
+        'rss_private_after_warm_up_mb': round(memory_warm['RssAnon'], 1),
+        'rss_private_end_mb': round(memory_end['RssAnon'], 1),
+        'rss_private_growth_after_warm_up_percent': growth(memory_warm, memory_end, 'RssAnon'),
+        'rss_shared_memory_end_mb': round(memory_end['RssShmem'], 1),
+        'rss_growth_percent': growth(memory_start, memory_end, 'VmRSS'),
+        'rss_growth_after_warm_up_percent': growth(memory_warm, memory_end, 'VmRSS'),
         'diagnostics_reports': len(during_reports),
         'diagnostics_error_reports': sum(level == 2 for level, _ in during_reports),
         'diagnostics_warn_reports': sum(level == 1 for level, _ in during_reports),
