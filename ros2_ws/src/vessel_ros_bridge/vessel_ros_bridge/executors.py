@@ -46,8 +46,8 @@ from vessel_ros_bridge.lean_take import TAKEN
 # How long the spinning thread pauses when the only ready work is already queued (s):
 # long enough for a waiting worker to take the GIL, short against any callback period.
 QUEUED_PAUSE_S = 0.0005
-# Refused requests answered in one turn at most: a flood of them cannot hold the
-# spinning thread's turn from the other callbacks for longer than about 50 ms.
+# Refused requests answered in one take at most (about 0.35 ms each): a flood of them
+# keeps a worker thread, and the service out of the wait set, for about 50 ms at most.
 DRAIN_LIMIT = 128
 
 
