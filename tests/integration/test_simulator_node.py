@@ -51,6 +51,8 @@ def test_publishes_state_actuators_and_wind_in_ros_frames(launcher, ros_node):
     assert spin_until(ros_node, lambda: len(odom.all) >= 10 and wind.all and actuators.all, 30)
     # Its log says which Fast DDS profile it runs with (its own: the tests give none).
     assert 'fastdds_simulator.xml' in sim.output() and 'heartbeats every 0.1 s' in sim.output()
+    # and that its console entry limited the malloc arenas (vessel_ros_bridge.allocator).
+    assert 'malloc: 2 arenas shared by all threads' in sim.output()
     stamps = sorted(odom.by_t)
     assert all(float(t).is_integer() for t in stamps), 'outputs are on whole simulated seconds'
     assert np.all(np.diff(stamps) >= 1.0)

@@ -23,7 +23,7 @@ setup(
     description='ROS 2 node serving hybrid ship-motion forecasts.',
     license='Apache-2.0',
     entry_points={'console_scripts': [
-        'predictor = hybrid_predictor.node:main',
+        'predictor = hybrid_predictor.start:main',
         're_forecast = hybrid_predictor.bag_re_forecast:main',
     ]},
 )

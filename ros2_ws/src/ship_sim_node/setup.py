@@ -21,5 +21,5 @@ setup(
     maintainer_email='maintainers@hybrid-ship.dev',
     description='ROS 2 node simulating a vessel of any physics family (patrol boat by default).',
     license='Apache-2.0',
-    entry_points={'console_scripts': ['simulator = ship_sim_node.node:main']},
+    entry_points={'console_scripts': ['simulator = ship_sim_node.start:main']},
 )

@@ -9,6 +9,7 @@ import rclpy
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException
 
+from vessel_ros_bridge.allocator import share_malloc_arenas
 from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
 
@@ -25,12 +26,15 @@ def run_node(make_node: Callable, program: str, expected_errors: tuple = (),
     lands while a callback is publishing makes that publish fail on the already shut
     down context; such an error is part of stopping, not a fault, and exits 0.
     ``make_executor(node)`` gives the executor to spin in (default: rclpy's
-    single-threaded one).
+    single-threaded one). The process's threads share two malloc arenas
+    (``allocator``), so the node's resident memory follows what it holds.
     """
+    allocator_note = share_malloc_arenas()
     rclpy.init(args=args)
     node = None
     try:
         node = make_node(namespace=DEFAULT_NAMESPACE)
+        node.get_logger().info(allocator_note)
         rclpy.spin(node, make_executor(node) if make_executor else None)
     except (InvalidParameterValueException, *expected_errors) as exc:
         print(f'{program}: error: {exc}', file=sys.stderr)
