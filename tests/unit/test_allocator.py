@@ -79,7 +79,7 @@ def test_user_setting_names_the_variable_that_sets_the_arenas(environ, expected)
 
 # A node's console entry must limit the arenas before anything starts threads: its
 # module imports none of numpy, rclpy or jax, and the node module imported after the
-# limit allocates from two arenas (five threads; three arenas without the limit).
+# limit allocates from two arenas (four threads start; three arenas without the limit).
 ENTRY = """
 import ctypes, importlib, json, os, sys, tempfile
 entry = importlib.import_module(sys.argv[1] + '.start')

@@ -6,20 +6,20 @@ pages freed in each resident for its own threads. A node's executor and XLA's wo
 allocate megabyte buffers from many threads (a batch's arrays, a request or an answer
 in transport), so every arena ends up holding its own copy of that churn. Measured in
 the predictor under the soak's load (mallinfo2, 2026-11-27): the memory in use stayed
-at 100-115 MB while the free memory the arenas kept grew from 98 to 182 MB in seven
+at 100-115 MB while the free memory the arenas kept grew from 98 to 196 MB in seven
 minutes (malloc_trim gave 127 MB back at once, refilled within 20 s); the resident
 size looked like a leak (+10 % private memory over 30 minutes). With two arenas the
-free memory kept stayed at 18-23 MB and a 64-plan forecast was faster, not slower
-(median 79-86 against 96-106 ms, its blocks reused warm). Mapping every large block on
-its own (a fixed mmap threshold) also held the memory, but cost 12-20 % more CPU per
-64-plan request. A user's own setting (environment) wins; on another C library
-nothing is done.
+free memory kept stayed within 32-54 MB for ten minutes (private memory -0.7 %), and a
+64-plan forecast was faster, not slower (median 79-86 against 96-106 ms, its blocks
+reused warm). Mapping every large block on its own (a fixed mmap threshold) also held
+the memory, but took 182-203 ms of CPU per 64-plan request against 163-182 ms. A
+user's own setting (environment) wins; on another C library nothing is done.
 
 A thread keeps the arena it first allocated from, and importing numpy, rclpy or the
-predictor's model starts threads (five after ``import hybrid_predictor.node``, three
-arenas already): a node's console entry therefore limits them before it imports
-anything else (``start_node``, from ``ship_sim_node.start`` and ``hybrid_predictor.start``),
-and ``run_node`` logs what was done.
+predictor's model starts threads (four on ``import hybrid_predictor.node``, with three
+arenas): a node's console entry therefore limits them before it imports anything else
+(``start_node``, from ``ship_sim_node.start`` and ``hybrid_predictor.start``), and
+``run_node`` logs what was done.
 """
 
 from __future__ import annotations
