@@ -117,3 +117,13 @@ def test_a_client_gets_its_profile_without_the_predictors_qos_from_xml():
     mine = {'FASTDDS_DEFAULT_PROFILES_FILE': '/etc/my_profile.xml'}
     use_client_profile(mine, CONFIG)
     assert mine == {'FASTDDS_DEFAULT_PROFILES_FILE': '/etc/my_profile.xml'}
+
+
+@pytest.mark.parametrize(('use', 'profile'), [(use_service_profile, PROFILE_FILE),
+                                               (use_client_profile, CLIENT_PROFILE_FILE)])
+def test_without_a_directory_both_use_the_installed_packages_profile(use, profile):
+    env = {}
+    use(env)
+    path = Path(env['FASTRTPS_DEFAULT_PROFILES_FILE'])
+    assert path.name == profile and path.is_file()
+    assert path.parent.parent.name == 'hybrid_predictor'     # share/hybrid_predictor/config

@@ -29,14 +29,16 @@ PROFILE_FILE = 'fastdds_predictor.xml'
 CLIENT_PROFILE_FILE = 'fastdds_what_if_client.xml'
 
 
-def use_service_profile(environ: MutableMapping[str, str], config_dir: Path) -> str:
+def use_service_profile(environ: MutableMapping[str, str],
+                        config_dir: Path | None = None) -> str:
     """
     Point Fast DDS at the predictor's profile in ``environ`` unless the user configured it.
 
-    Return one line saying what was done, for the node's log. Must run before
-    ``rclpy.init`` (rmw reads the variables when it creates the endpoints).
+    ``config_dir`` defaults to the installed package's. Return one line saying what was
+    done, for the node's log. Must run before ``rclpy.init`` (rmw reads the variables
+    when it creates the endpoints).
     """
-    return use_profile(environ, config_dir / PROFILE_FILE,
+    return use_profile(environ, installed(config_dir, PROFILE_FILE) / PROFILE_FILE,
                        'what-if answers in dynamic history memory, a 32 MiB shared-memory '
                        'segment, heartbeats every 0.1 s', qos_from_xml=True)
 
@@ -48,10 +50,15 @@ def use_client_profile(environ: MutableMapping[str, str], config_dir: Path | Non
     For a process that sends ~/predict requests; ``config_dir`` defaults to the installed
     package's. Return one line saying what was done. Must run before ``rclpy.init``.
     """
-    if config_dir is None:
-        from vessel_ros_bridge.parameters import package_config
-
-        config_dir = package_config('hybrid_predictor', CLIENT_PROFILE_FILE).parent
-    return use_profile(environ, config_dir / CLIENT_PROFILE_FILE,
+    return use_profile(environ, installed(config_dir, CLIENT_PROFILE_FILE) / CLIENT_PROFILE_FILE,
                        'a 32 MiB shared-memory segment for requests in flight, heartbeats '
                        'every 0.1 s')
+
+
+def installed(config_dir: Path | None, profile: str) -> Path:
+    """Return ``config_dir``, or the installed package's config directory for ``profile``."""
+    if config_dir is not None:
+        return config_dir
+    from vessel_ros_bridge.parameters import package_config
+
+    return package_config('hybrid_predictor', profile).parent

@@ -64,7 +64,7 @@ from hybrid_predictor.health import Health
 from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind
 from hybrid_predictor.hindsight import Hindsight, Remade, applied_future
 from hybrid_predictor.input_window import InputWindow
-from hybrid_predictor.middleware import PROFILE_FILE, use_service_profile
+from hybrid_predictor.middleware import use_service_profile
 from hybrid_predictor.plans import (
     PlanError,
     PlanLimits,
@@ -817,8 +817,7 @@ def executor_threads(node: PredictorNode) -> int:
 
 def main(args=None) -> int:
     """Run the predictor until interrupted; exit 2 with one line on a bad model or value."""
-    note = use_service_profile(os.environ, package_config('hybrid_predictor', PROFILE_FILE)
-                               .parent)
+    note = use_service_profile(os.environ)
     return run_node(partial(PredictorNode, middleware_note=note), NODE_NAME,
                     (CheckpointError, FileNotFoundError, ValueError, VesselError,
                      TopicMapError), args, executor_for)
