@@ -38,7 +38,7 @@ def use_service_profile(environ: MutableMapping[str, str],
     done, for the node's log. Must run before ``rclpy.init`` (rmw reads the variables
     when it creates the endpoints).
     """
-    return use_profile(environ, installed(config_dir, PROFILE_FILE) / PROFILE_FILE,
+    return use_profile(environ, profile_path(PROFILE_FILE, config_dir),
                        'what-if answers in dynamic history memory, a 32 MiB shared-memory '
                        'segment, heartbeats every 0.1 s', qos_from_xml=True)
 
@@ -50,15 +50,15 @@ def use_client_profile(environ: MutableMapping[str, str], config_dir: Path | Non
     For a process that sends ~/predict requests; ``config_dir`` defaults to the installed
     package's. Return one line saying what was done. Must run before ``rclpy.init``.
     """
-    return use_profile(environ, installed(config_dir, CLIENT_PROFILE_FILE) / CLIENT_PROFILE_FILE,
+    return use_profile(environ, profile_path(CLIENT_PROFILE_FILE, config_dir),
                        'a 32 MiB shared-memory segment for requests in flight, heartbeats '
                        'every 0.1 s')
 
 
-def installed(config_dir: Path | None, profile: str) -> Path:
-    """Return ``config_dir``, or the installed package's config directory for ``profile``."""
+def profile_path(profile: str, config_dir: Path | None) -> Path:
+    """Return ``profile`` in ``config_dir``, or in the installed package's config directory."""
     if config_dir is not None:
-        return config_dir
+        return config_dir / profile
     from vessel_ros_bridge.parameters import package_config
 
-    return package_config('hybrid_predictor', profile).parent
+    return package_config('hybrid_predictor', profile)
