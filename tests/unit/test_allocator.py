@@ -10,18 +10,30 @@ import pytest
 
 from vessel_ros_bridge import allocator
 
+# The arenas glibc has made so far: malloc_info(3) writes one <heap nr=...> per arena.
+COUNT_ARENAS = """
+import ctypes, os, tempfile
+def arenas():
+    libc = ctypes.CDLL(None)
+    libc.fopen.restype = ctypes.c_void_p
+    libc.malloc_info.argtypes = [ctypes.c_int, ctypes.c_void_p]
+    libc.fclose.argtypes = [ctypes.c_void_p]
+    path = os.path.join(tempfile.mkdtemp(), 'malloc_info.xml')
+    stream = libc.fopen(path.encode(), b'w')
+    libc.malloc_info(0, stream)
+    libc.fclose(stream)
+    return open(path).read().count('<heap nr=')
+"""
+
 # In a process of its own (mallopt holds for the whole process): six threads allocate
 # while all are alive (an exited thread's arena goes to the next one), each from the
-# arena glibc gives it; then malloc_info(3) lists the arenas (<heap nr=...>).
-PROBE = """
-import ctypes, json, os, sys, tempfile, threading
+# arena glibc gives it; then the arenas are counted.
+PROBE = COUNT_ARENAS + """
+import json, sys, threading
 from vessel_ros_bridge.allocator import share_malloc_arenas
 note = share_malloc_arenas() if sys.argv[1] == 'shared' else ''
 libc = ctypes.CDLL(None)
 libc.malloc.restype = ctypes.c_void_p
-libc.fopen.restype = ctypes.c_void_p
-libc.malloc_info.argtypes = [ctypes.c_int, ctypes.c_void_p]
-libc.fclose.argtypes = [ctypes.c_void_p]
 kept, alive = [], threading.Barrier(7)
 def allocate():
     kept.append(libc.malloc(1 << 16))
@@ -30,11 +42,7 @@ threads = [threading.Thread(target=allocate) for _ in range(6)]
 for t in threads:
     t.start()
 alive.wait()
-path = os.path.join(tempfile.mkdtemp(), 'malloc_info.xml')
-stream = libc.fopen(path.encode(), b'w')
-libc.malloc_info(0, stream)
-libc.fclose(stream)
-print(json.dumps({'note': note, 'arenas': open(path).read().count('<heap nr=')}))
+print(json.dumps({'note': note, 'arenas': arenas()}))
 """
 
 glibc = pytest.mark.skipif(not hasattr(ctypes.CDLL(None), 'gnu_get_libc_version'),
@@ -81,22 +89,15 @@ def test_user_setting_names_the_variable_that_sets_the_arenas(environ, expected)
 # module imports none of numpy, rclpy or jax, and the node module imported after the
 # limit allocates from two arenas (four threads start; three arenas without the limit).
 ENTRY = """
-import ctypes, importlib, json, os, sys, tempfile
+import importlib, json, sys
 entry = importlib.import_module(sys.argv[1] + '.start')
 heavy = sorted(m for m in ('numpy', 'rclpy', 'jax') if m in sys.modules)
 if sys.argv[2] == 'limited':
     from vessel_ros_bridge.allocator import share_malloc_arenas
     share_malloc_arenas()
 importlib.import_module(sys.argv[1] + '.node')
-libc = ctypes.CDLL(None)
-libc.fopen.restype = ctypes.c_void_p
-libc.malloc_info.argtypes = [ctypes.c_int, ctypes.c_void_p]
-libc.fclose.argtypes = [ctypes.c_void_p]
-path = os.path.join(tempfile.mkdtemp(), 'malloc_info.xml')
-stream = libc.fopen(path.encode(), b'w')
-libc.malloc_info(0, stream)
-libc.fclose(stream)
-print(json.dumps({'heavy': heavy, 'arenas': open(path).read().count('<heap nr=')}))
+""" + COUNT_ARENAS + """
+print(json.dumps({'heavy': heavy, 'arenas': arenas()}))
 """
 
 
