@@ -153,7 +153,7 @@ stage_deps() {
 # The wheels' CMake export files name the wheel builder's Python and numpy include
 # directories (/opt/python/cp311-cp311/...); point them at this interpreter and venv.
 stage_fixups() {
-  local want; want="$(cat "$VENV/.deps-hash" 2>/dev/null)-fix1"
+  local want; want="$(cat "$VENV/.deps-hash" 2>/dev/null)-fix2"
   [ "$(cat "$VENV/.fixups-hash" 2>/dev/null)" = "$want" ] && return 0
   local py_include site numpy_include
   py_include="$("$VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
@@ -169,7 +169,14 @@ stage_fixups() {
       -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$numpy_include#g" \
       -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages#$site#g"
   fi
-  if grep -rq --include='*.cmake' 'cp311-cp311' "$VENV/share" 2>/dev/null; then
+  # Fast DDS's export also names the builder's /usr/lib64/libtinyxml2.so, which a C
+  # program linking rcl (what_if_load) would need to exist; the library itself finds
+  # the copy its wheel bundles, so the name is dropped from the link line.
+  files="$(grep -rl --include='*.cmake' '/usr/lib64/libtinyxml2.so' "$VENV/share" 2>/dev/null || true)"
+  if [ -n "$files" ]; then
+    echo "$files" | xargs sed -i -e 's#;/usr/lib64/libtinyxml2.so;#;#g'
+  fi
+  if grep -rq --include='*.cmake' 'cp311-cp311\|/usr/lib64/libtinyxml2.so' "$VENV/share" 2>/dev/null; then
     die "unexpected wheel paths left in $VENV/share after the fix-up: $(grep -rl --include='*.cmake' 'cp311-cp311' "$VENV/share" | head -n 1)"
   fi
   echo "$want" >"$VENV/.fixups-hash"

@@ -12,9 +12,13 @@ receives every 1 s step, ten times the bytes). A client answered "busy" waits
 (``--busy-backoff retry_after``) the answer's ``retry_after`` and up to a tenth more at
 random, as a client that follows the node's hint does.
 The clients ask with the what-if client's Fast DDS profile
-(``hybrid_predictor.middleware.use_client_profile``), as a controller should, from the
-soak's own process or (``--client-processes``) spread over processes of their own, as
-controllers are: each then writes its figures for the soak to merge.
+(``hybrid_predictor.middleware.use_client_profile``), as a controller should. By default
+they are C programs over rcl (package what_if_load, ``--client c``), in processes of
+their own that write their figures for the soak to merge: what they measure is the node
+and the transport. With ``--client python`` they are rclpy clients, in the soak's own
+process or (``--client-processes``) spread over processes of their own, and a busy
+answer also waits for the client's interpreter, busy converting the 1.65 MB answers it
+receives meanwhile (docs/predictor.md, "Soak benchmark").
 Figures: the request's and a successful answer's size; requests sent, answered
 (success, busy or another failure) and never answered; p50/p99 latency, and for "busy"
 answers where it went (``busy_stages_ms``: to the node and through it, back over DDS,
@@ -50,6 +54,8 @@ WINDOW_S = 60.0   # the patrol boat's window: the simulator must run this long f
 RESPONSE_DEPTH = 1000
 RSS_SAMPLES = 20  # evenly spaced over the soak: growth that levels off or keeps on
 FOLLOW_HINT = 'retry_after'
+SERVICE = '/vessel/predictor/predict'
+CLIENT_KINDS = ('python', 'c')
 
 
 def backoff(text: str) -> float | str:
@@ -101,8 +107,12 @@ def add_arguments(parser) -> None:
                              'tenth more at random (default 0.2)')
     parser.add_argument('--client-processes', type=positive_int, default=1,
                         help='processes the clients are spread over (default 1: all in '
-                             "the soak's own; --clients of them: one each, as "
-                             'controllers are)')
+                             "one, with --client python the soak's own; --clients of "
+                             'them: one each, as controllers are)')
+    parser.add_argument('--client', choices=CLIENT_KINDS, default='c',
+                        help="the clients' language: c (rcl, package what_if_load; the "
+                             "default: no interpreter of the client's own in what is "
+                             'measured) or python (rclpy, as a Python controller asks)')
     parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
                         help='another predictor parameter (repeatable)')
 
@@ -115,7 +125,7 @@ def run(args) -> dict:
                          f'over --client-processes {args.client_processes}')
     return soak(args.duration, args.clients, args.concurrency, shape, args.rtf,
                 args.forecast_period, args.busy_backoff, predictor_params=args.param,
-                client_processes=args.client_processes)
+                client_processes=args.client_processes, client=args.client)
 
 
 @dataclass(frozen=True)
@@ -171,6 +181,14 @@ def make_plans(count: int, period: float = 0.0, seed: int = 0):
     return plans
 
 
+def make_request(shape: RequestShape):
+    """Return the Predict.Request every soak client sends."""
+    from hybrid_predictor_interfaces.srv import Predict
+
+    return Predict.Request(plans=make_plans(shape.plans, shape.plan_period),
+                           answer_period=shape.answer_period)
+
+
 class Load:
     """Clients that keep requests in flight and count what comes back."""
 
@@ -184,10 +202,9 @@ class Load:
         qos = QoSProfile(depth=max(RESPONSE_DEPTH, 2 * clients * concurrency))
         self.busy_backoff = busy_backoff
         self.is_busy = is_busy
-        self.clients = [node.create_client(Predict, '/vessel/predictor/predict', qos_profile=qos)
+        self.clients = [node.create_client(Predict, SERVICE, qos_profile=qos)
                         for _ in range(clients)]
-        self.request = Predict.Request(plans=make_plans(shape.plans, shape.plan_period),
-                                       answer_period=shape.answer_period)
+        self.request = make_request(shape)
         self.concurrency = concurrency
         self.lock = threading.Lock()
         self.sent = self.success = self.busy = self.failed = 0
@@ -324,27 +341,38 @@ class ProcessLoads:
     """
     The clients spread over processes of their own, started now, loaded on ``begin``.
 
-    Each process (``client_main``) holds ``clients // processes`` clients, says it is
-    ready once its service is there, starts when told, and writes its ``Load.raw()``.
+    Each process holds ``clients // processes`` clients, says it is ready once its
+    service is there, starts when told, and writes its ``Load.raw()``: a Python one
+    (``client_main``) or, with ``kind`` 'c', one of package what_if_load, which sends
+    the soak's request from its serialized bytes.
     """
 
     clients = ()   # none here: each process waits for the service itself
 
     def __init__(self, children, log_dir: Path, processes: int, clients: int,
-                 concurrency: int, shape: RequestShape, busy_backoff: float | str):
+                 concurrency: int, shape: RequestShape, busy_backoff: float | str,
+                 kind: str = 'python'):
         import sys
 
         self.dir = log_dir / 'clients'
         self.dir.mkdir(parents=True, exist_ok=True)
         for old in self.dir.iterdir():
             old.unlink()
-        self.processes = [children.start(
-            [sys.executable, str(Path(__file__).resolve()), 'client',
-             '--clients', str(clients // processes), '--concurrency', str(concurrency),
-             '--plans', str(shape.plans), '--plan-period', str(shape.plan_period),
-             '--answer-period', str(shape.answer_period), '--busy-backoff', str(busy_backoff),
-             '--dir', str(self.dir), '--name', f'client{k}'], f'soak_client{k}')
-            for k in range(processes)]
+        each = ['--clients', str(clients // processes), '--concurrency', str(concurrency),
+                '--busy-backoff', str(busy_backoff), '--dir', str(self.dir)]
+        if kind == 'c':
+            from rclpy.serialization import serialize_message
+
+            request = self.dir / 'request.cdr'
+            request.write_bytes(serialize_message(make_request(shape)))
+            command = [sys.executable, '-m', 'what_if_load', '--service', SERVICE,
+                       '--request', str(request), *each]
+        else:
+            command = [sys.executable, str(Path(__file__).resolve()), 'client', *each,
+                       '--plans', str(shape.plans), '--plan-period', str(shape.plan_period),
+                       '--answer-period', str(shape.answer_period)]
+        self.processes = [children.start([*command, '--name', f'client{k}'], f'soak_client{k}')
+                          for k in range(processes)]
         self.merged: Merged | None = None
 
     def begin(self, seconds: float, ready_within: float = 120.0) -> None:
@@ -485,7 +513,7 @@ def staged_executor(threads: int, context):
 def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, rtf: float,
          forecast_period: float = 1.0, busy_backoff: float | str = 0.2,
          log_dir: Path | None = None, predictor_params: tuple = (),
-         client_processes: int = 1) -> dict:
+         client_processes: int = 1, client: str = 'c') -> dict:
     """Run the soak (see the module docstring) and return its figures."""
     from vessel_bringup.processes import Children
 
@@ -494,12 +522,12 @@ def soak(duration: float, clients: int, concurrency: int, shape: RequestShape, r
     # SIGTERM or SIGHUP of this process (a `timeout` around it).
     with Children(log_dir) as children:
         return _soak(children, log_dir, duration, clients, concurrency, shape, rtf,
-                     forecast_period, busy_backoff, predictor_params, client_processes)
+                     forecast_period, busy_backoff, predictor_params, client_processes, client)
 
 
 def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: int,
           shape: RequestShape, rtf: float, forecast_period: float, busy_backoff: float | str,
-          predictor_params, client_processes: int) -> dict:
+          predictor_params, client_processes: int, client_kind: str) -> dict:
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
     from vessel_bringup.processes import rclpy_options
@@ -534,9 +562,9 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
                                if kv.key.startswith('service_')})
 
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 50)
-    if client_processes > 1:
+    if client_processes > 1 or client_kind != 'python':
         load = ProcessLoads(children, log_dir, client_processes, clients, concurrency, shape,
-                            busy_backoff)
+                            busy_backoff, client_kind)
     else:
         load = Load(node, clients, concurrency, shape, busy_backoff)
     spinner.start()
@@ -595,6 +623,7 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'success_answer_kb': counted.success_answer_kb,
         'simulator_rtf': rtf, 'busy_backoff': busy_backoff,
         'client_middleware': client_middleware, 'client_processes': client_processes,
+        'client': client_kind,
         'requests_sent': counted.sent,
         'requests_answered': counted.answered,
         'requests_success': counted.success,

@@ -50,14 +50,16 @@ def test_a_simulator_restarted_after_kill_9_is_forecast_again_within_one_window(
         graph.close()
 
 
-@pytest.mark.slow  # about 35 s: start-up, a 15 s soak of 32 requests in flight
-def test_a_service_soak_answers_every_request_while_forecasts_flow(tmp_path):
+@pytest.mark.slow  # about 35 s each: start-up, a 15 s soak of 32 requests in flight
+@pytest.mark.parametrize('client', ['c', 'python'])
+def test_a_service_soak_answers_every_request_while_forecasts_flow(tmp_path, client):
     from offline.benchmarks.soak import RequestShape, soak
 
     # 10x real time fills the window in 6 s; a forecast period of 10 s of simulated
     # time is then one a wall second, as on a vessel with the default 1 s.
     result = soak(duration=15.0, clients=4, concurrency=8, shape=RequestShape(plans=64),
-                  rtf=10.0, forecast_period=10.0, log_dir=tmp_path)
+                  rtf=10.0, forecast_period=10.0, log_dir=tmp_path, client=client)
+    assert result['client'] == client
     assert result['requests_sent'] > 0 and result['requests_success'] > 0, result
     assert result['requests_unanswered'] == 0, result
     assert result['requests_answered'] == result['requests_sent'], result
