@@ -57,6 +57,25 @@ print(json.dumps([before, sys.getrefcount(TAKEN)]))
 """
 
 
+def test_a_lean_type_made_before_its_type_was_ever_used_takes_lean():
+    # In a fresh process nothing has loaded the type's C support yet: lean_type loads it.
+    out = subprocess.run([sys.executable, '-c', LEAN_FIRST], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip() == 'TAKEN 8'
+
+
+LEAN_FIRST = """
+from rclpy.serialization import deserialize_message, serialize_message
+from hybrid_predictor_interfaces.msg import ControlPlan
+from hybrid_predictor_interfaces.srv import Predict
+from vessel_ros_bridge.lean_take import lean_type
+lean = lean_type(Predict.Request)
+plan = ControlPlan(plan_id='p', values=[1.0, 0.1] * 90, step_period=10.0)
+data = serialize_message(Predict.Request(plans=[plan] * 8, answer_period=10.0))
+print(deserialize_message(data, lean), len(deserialize_message(data, Predict.Request).plans))
+"""
+
+
 def test_an_admitting_type_takes_whole_only_while_it_admits():
     admit = [True]
     seen = AdmittingType(Predict, lambda: admit[0])

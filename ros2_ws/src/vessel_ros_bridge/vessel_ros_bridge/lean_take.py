@@ -51,6 +51,11 @@ def lean_type(message_class: type) -> type:
     The message is still read whole by the middleware (its sequence number and sender
     stay valid for an answer); only the Python objects are not made.
     """
+    from rclpy.type_support import check_for_type_support
+
+    # The capsules are copied now: the type's support must be loaded before, which rclpy
+    # otherwise does only when the type is first used (a service made, a message sent).
+    check_for_type_support(message_class)
     meta = type(message_class)
     functions = {name: getattr(meta, name) for name in (
         '_CREATE_ROS_MESSAGE', '_DESTROY_ROS_MESSAGE', '_CONVERT_FROM_PY', '_TYPE_SUPPORT')}
