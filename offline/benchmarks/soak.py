@@ -13,7 +13,7 @@ receives every 1 s step, ten times the bytes). A client answered "busy" waits
 random, as a client that follows the node's hint does.
 The clients ask with the what-if client's Fast DDS profile
 (``hybrid_predictor.middleware.use_client_profile``), as a controller should. By default
-they are C programs over rcl (package what_if_load, ``--client c``), in processes of
+they are C programs over rcl (package what_if_c, ``--client c``), in processes of
 their own that write their figures for the soak to merge: what they measure is the node
 and the transport. With ``--client python`` they are rclpy clients, in the soak's own
 process or (``--client-processes``) spread over processes of their own, and a busy
@@ -110,7 +110,7 @@ def add_arguments(parser) -> None:
                              "one, with --client python the soak's own; --clients of "
                              'them: one each, as controllers are)')
     parser.add_argument('--client', choices=CLIENT_KINDS, default='c',
-                        help="the clients' language: c (rcl, package what_if_load; the "
+                        help="the clients' language: c (rcl, package what_if_c; the "
                              "default: no interpreter of the client's own in what is "
                              'measured) or python (rclpy, as a Python controller asks)')
     parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
@@ -343,7 +343,7 @@ class ProcessLoads:
 
     Each process holds ``clients // processes`` clients, says it is ready once its
     service is there, starts when told, and writes its ``Load.raw()``: a Python one
-    (``client_main``) or, with ``kind`` 'c', one of package what_if_load, which sends
+    (``client_main``) or, with ``kind`` 'c', one of package what_if_c, which sends
     the soak's request from its serialized bytes.
     """
 
@@ -365,7 +365,7 @@ class ProcessLoads:
 
             request = self.dir / 'request.cdr'
             request.write_bytes(serialize_message(make_request(shape)))
-            command = [sys.executable, '-m', 'what_if_load', '--service', SERVICE,
+            command = [sys.executable, '-m', 'what_if_c.load', '--service', SERVICE,
                        '--request', str(request), *each]
         else:
             command = [sys.executable, str(Path(__file__).resolve()), 'client', *each,

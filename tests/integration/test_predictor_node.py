@@ -247,8 +247,8 @@ def test_predict_service_answers_a_batch_and_refuses_malformed_plans(launcher, r
     response = call_when_ready([plan(0.0)], 5)
     assert response.success and predictor.alive(), response.message
 
-    # Beyond service_capacity (4) requests are answered busy, and those taken while every
-    # slot was held are answered without being read (vessel_ros_bridge.lean_take).
+    # Beyond service_capacity (4) requests are answered busy by the door's own thread,
+    # without the interpreter (what_if_c.door): counted as busy and unread.
     from diagnostic_msgs.msg import DiagnosticArray
 
     reports = []

@@ -173,6 +173,6 @@ def test_no_input_topic_of_the_predictor_waits_for_another(trained, ros_node):
                   if e not in inputs]
         assert len({id(g) for g in groups}) == len(groups)
         assert not {id(g) for g in groups} & {id(g) for g in others}
-        assert executor_threads(node) >= len(groups) + node.p['service_capacity'] + 3
+        assert executor_threads(node) >= len(groups) + 2   # forecasting, the default group
     finally:
         node.destroy_node()

@@ -18,10 +18,10 @@ health figures live in ROS-free modules of this package; the numerics in
 Threads (a MultiThreadedExecutor, see ``executor_for``): each input topic and the plan
 topic has a mutually exclusive callback group of its own (one topic's samples stay in
 order) and only reads, checks and stores samples; forecasting runs in a group of its
-own, woken by a guard condition; ``~/predict`` is reentrant but admits at most
-``service_capacity`` requests at a time and answers the rest "busy" at once, before
-taking any lock the other threads hold, and without reading them (``lean_take``),
-with the time to come back (``retry_hint``);
+own, woken by a guard condition; ``~/predict`` is served by a thread of its own in C
+(``what_if_c.door``), which admits at most ``service_capacity`` requests at a time and
+answers the rest "busy" at once, with the time to come back, without the interpreter;
+the admitted ones are answered by a pool of as many Python threads;
 /clock, parameters and /diagnostics keep the default group. None of them waits for
 another, so no input callback starves: rclpy offers a group's ready subscriptions in a
 fixed order, and when the inputs shared one group a state topic the node could not keep
@@ -37,6 +37,7 @@ hardware id the namespace and vessel; every message names the topics as resolved
 from __future__ import annotations
 
 from array import array
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from functools import partial
 import math
@@ -51,11 +52,12 @@ from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType, JumpThreshold
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from what_if_c.door import open_door
 
 from hybrid_models.checkpoint_format import CheckpointError
 from hybrid_models.engine import Forecaster
@@ -78,7 +80,6 @@ from hybrid_predictor.plans import (
     track,
 )
 from hybrid_predictor.plausibility import forecast_problem
-from hybrid_predictor.retry_hint import RetryHint
 from hybrid_predictor.schedule import ForecastSchedule
 from hybrid_predictor.skill import LiveSkill, Settings
 from hybrid_predictor.vessel_source import served_vessel
@@ -90,7 +91,6 @@ from vessel_description import VesselError
 from vessel_physics import frames
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.executors import MultiThreadedExecutor
-from vessel_ros_bridge.lean_take import TAKEN, AdmittingType
 from vessel_ros_bridge.lifecycle import run_node
 from vessel_ros_bridge.names import node_topic
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
@@ -192,20 +192,15 @@ class PredictorNode(Node):
         # figures, which the input, forecast, service and clock threads share; held only
         # briefly, but a window assembly takes milliseconds under it.
         self.lock = threading.Lock()
-        # Guards the counters and admission alone: a "busy" answer counts itself without
-        # waiting for a window assembly or a forecast in progress.
+        # Guards the counters alone: an answer counts itself without waiting for a window
+        # assembly or a forecast in progress.
         self.count_lock = threading.Lock()
         # One what-if batch at a time: the engine already spreads a batch over the cores.
         self.batch_lock = threading.Lock()
-        # Requests admitted (at most service_capacity); the service's take reads it
-        # without the lock, as a hint.
-        self.admitted = 0
-        self.retry_hint = RetryHint(longest=p['max_retry_after'])   # under count_lock
         self.input_event = threading.Event()
         self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
-                       0, 'clock_resets': 0, 'service_requests': 0, 'service_busy': 0,
-                       'service_busy_unread': 0, 'service_failed': 0,
+                       0, 'clock_resets': 0, 'service_failed': 0,
                        'forecasts_before_sample_complete': 0}
         self.latest_plan: tuple[ControlPlan, dict] | None = None
         self.pending: Pending | None = None
@@ -239,19 +234,15 @@ class PredictorNode(Node):
                                  callback_group=MutuallyExclusiveCallbackGroup())
         self.forecast_trigger = self.create_guard_condition(
             self._forecast_worker, callback_group=MutuallyExclusiveCallbackGroup())
-        # Every request is read and answered (success, failure or busy): reliable and
-        # keep-all, a burst of requests from many clients is queued, never overwritten
-        # (keep-last would drop the oldest unread ones silently).
-        service_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL,
-                                 reliability=ReliabilityPolicy.RELIABLE)
-        service = self.create_service(Predict, '~/predict', self._on_predict,
-                                      qos_profile=service_qos,
-                                      callback_group=ReentrantCallbackGroup())
-        # A request taken while every slot is held is answered busy without being read:
-        # taken without its contents (lean_take), 0.16 ms instead of 1-1.5 ms of the GIL
-        # for 64 plans, at a hundred such requests a second under the soak.
-        service.srv_type = AdmittingType(
-            Predict, lambda: self.admitted < self.p['service_capacity'])
+        # Every request is answered (success, failure or busy), reliable and keep-all,
+        # by the door's thread: a refusal never waits for the interpreter, which the
+        # forecasts' Python work holds (docs/predictor.md, "Soak benchmark").
+        self.door = open_door(self, '~/predict', p['service_capacity'], p['max_retry_after'])
+        self.answering = ThreadPoolExecutor(max_workers=p['service_capacity'],
+                                            thread_name_prefix='predict')
+        self.door_thread = threading.Thread(target=self._take_admitted, name='predict-door',
+                                            daemon=True)
+        self.door_thread.start()
         self.diag_timer = self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.jump_handle = None
@@ -637,41 +628,35 @@ class PredictorNode(Node):
             path.poses.append(pose)
         return path
 
-    def _on_predict(self, request, response):
-        # Admission under a lock of its own: a "busy" answer never waits for a window
-        # assembly, a forecast or a batch in progress.
-        now = time.monotonic()
-        with self.count_lock:
-            admitted = request is not TAKEN and self.admitted < self.p['service_capacity']
-            self.admitted += admitted
-            self.counts['service_requests'] += 1
-            self.counts['service_busy'] += not admitted
-            self.counts['service_busy_unread'] += request is TAKEN
-            if admitted:
-                self.retry_hint.admitted(now)
-            else:
-                retry_after = self.retry_hint.refused(now)
-        if not admitted:
-            response.success = False
-            response.retry_after = retry_after
-            response.message = (f'busy: {self.p["service_capacity"]} requests in progress; '
-                                f'retry in {retry_after:.2f} s')
-            return response
+    def destroy_node(self) -> None:
+        """Close the what-if door first: its service lives on this node."""
+        self.door.close()
+        self.answering.shutdown(wait=False, cancel_futures=True)
+        super().destroy_node()
+
+    def _take_admitted(self) -> None:
+        # Until the door closes: each admitted request is answered on the pool.
+        while (taken := self.door.take()) is not None:
+            self.answering.submit(self._answer, *taken)
+        if self.door.failure:
+            self.get_logger().error(f'~/predict stopped: {self.door.failure}')
+
+    def _answer(self, token: int, request) -> None:
+        response = Predict.Response()
         try:
             response.success, response.message, response.forecasts = self._predict(
                 request.plans, request.answer_period)
         except Exception as exc:  # noqa: BLE001 - a request must never stop the node
             self.get_logger().error(f'~/predict failed: {exc!r}')
             response.success, response.message = False, f'internal error: {exc}'
-        finally:
-            with self.count_lock:
-                self.admitted -= 1
-                self.retry_hint.finished(now, time.monotonic())
         if not response.success:
             response.forecasts = []
             with self.count_lock:
                 self.counts['service_failed'] += 1
-        return response
+        try:
+            self.door.answer(token, response)
+        except RuntimeError as exc:   # the door closed meanwhile: the node is stopping
+            self.get_logger().info(f'~/predict answer not sent: {exc}')
 
     def _predict(self, plans, answer_period: float) -> tuple[bool, str, list]:
         """Return (success, message, forecasts) for a request's plans."""
@@ -708,6 +693,10 @@ class PredictorNode(Node):
         clock_publishers = self._clock_publishers()
         with self.count_lock:
             counts = dict(self.counts)
+        door = self.door.counts()
+        # Every refusal is the door's, given without the interpreter: "unread" by Python.
+        counts.update(service_requests=door['requests'], service_busy=door['refused'],
+                      service_busy_unread=door['refused'])
         with self.skill_lock:
             departure = self.skill.departure()
             departure_line = self.skill.describe(departure)
@@ -812,10 +801,10 @@ def executor_threads(node: PredictorNode) -> int:
     """
     Return the threads the node's executor needs so no callback group waits for one.
 
-    One per admitted request, one per input topic and the plan topic, and one each for
-    forecasting, the default group and the "busy" answers.
+    One per input topic and the plan topic, and one each for forecasting and the default
+    group; ``~/predict`` has threads of its own (the door's and its answering pool).
     """
-    return node.p['service_capacity'] + len(node.readers) + 4
+    return len(node.readers) + 3
 
 
 def main(args=None) -> int:

@@ -1,5 +1,5 @@
 /*
- * what_if_load: the service soak's what-if clients, in C over rcl.
+ * _load (python -m what_if_c.load): the service soak's what-if clients, in C over rcl.
  *
  * Keeps --concurrency requests in flight from each of --clients clients of a Predict
  * service for the soak's duration, and writes what came back in the figures format of
@@ -47,9 +47,9 @@
 #define BUSY_PREFIX "busy"  /* hybrid_predictor.what_if_client.is_busy */
 
 static const char USAGE[] =
-  "usage: what_if_load --service NAME --request FILE --dir DIR --name NAME\n"
-  "                    --clients N --concurrency K --busy-backoff S|retry_after\n"
-  "                    [--depth D] [--settle S]\n"
+  "usage: python -m what_if_c.load --service NAME --request FILE --dir DIR --name NAME\n"
+  "                              --clients N --concurrency K --busy-backoff S|retry_after\n"
+  "                              [--depth D] [--settle S]\n"
   "\n"
   "The service soak's what-if clients in C (offline/bench.py soak --client c).\n"
   "  --service       the Predict service, fully qualified (/vessel/predictor/predict)\n"
@@ -107,14 +107,14 @@ typedef struct
 
 static void die(const char * what)
 {
-  fprintf(stderr, "what_if_load: error: %s\n", what);
+  fprintf(stderr, "what_if_c.load: error: %s\n", what);
   exit(2);
 }
 
 static void check(rcl_ret_t ret, const char * what)
 {
   if (ret != RCL_RET_OK) {
-    fprintf(stderr, "what_if_load: error: %s failed: %s\n", what, rcutils_get_error_string().str);
+    fprintf(stderr, "what_if_c.load: error: %s failed: %s\n", what, rcutils_get_error_string().str);
     exit(2);
   }
 }
@@ -174,7 +174,7 @@ static unsigned char * read_file(const char * path, size_t * size)
 {
   FILE * file = fopen(path, "rb");
   if (!file) {
-    fprintf(stderr, "what_if_load: error: cannot read %s: %s\n", path, strerror(errno));
+    fprintf(stderr, "what_if_c.load: error: cannot read %s: %s\n", path, strerror(errno));
     exit(2);
   }
   fseek(file, 0, SEEK_END);
@@ -182,7 +182,7 @@ static unsigned char * read_file(const char * path, size_t * size)
   fseek(file, 0, SEEK_SET);
   unsigned char * bytes = malloc(length > 0 ? (size_t)length : 1);
   if (!bytes || length <= 0 || fread(bytes, 1, (size_t)length, file) != (size_t)length) {
-    fprintf(stderr, "what_if_load: error: %s is empty or unreadable\n", path);
+    fprintf(stderr, "what_if_c.load: error: %s is empty or unreadable\n", path);
     exit(2);
   }
   fclose(file);
@@ -264,7 +264,7 @@ static const char * option(int argc, char ** argv, const char * name, const char
     if (strcmp(argv[i], name) == 0) {return argv[i + 1];}
   }
   if (!fallback) {
-    fprintf(stderr, "what_if_load: error: %s is required\n%s", name, USAGE);
+    fprintf(stderr, "what_if_c.load: error: %s is required\n%s", name, USAGE);
     exit(2);
   }
   return fallback;
@@ -275,7 +275,7 @@ static long whole(const char * text, const char * name, long low, long high)
   char * end = NULL;
   long value = strtol(text, &end, 10);
   if (!*text || *end || value < low || value > high) {
-    fprintf(stderr, "what_if_load: error: %s takes an integer in [%ld, %ld], got '%s'\n",
+    fprintf(stderr, "what_if_c.load: error: %s takes an integer in [%ld, %ld], got '%s'\n",
       name, low, high, text);
     exit(2);
   }
@@ -287,7 +287,7 @@ static double seconds(const char * text, const char * name)
   char * end = NULL;
   double value = strtod(text, &end);
   if (!*text || *end || !(value >= 0)) {
-    fprintf(stderr, "what_if_load: error: %s takes seconds >= 0, got '%s'\n", name, text);
+    fprintf(stderr, "what_if_c.load: error: %s takes seconds >= 0, got '%s'\n", name, text);
     exit(2);
   }
   return value;
@@ -416,7 +416,7 @@ static int run(int argc, char ** argv)
     }
   }
   if (argc % 2 == 0) {
-    fprintf(stderr, "what_if_load: error: options come in pairs\n%s", USAGE);
+    fprintf(stderr, "what_if_c.load: error: options come in pairs\n%s", USAGE);
     return 2;
   }
   const char * service = option(argc, argv, "--service", NULL);
@@ -463,7 +463,7 @@ static int run(int argc, char ** argv)
   serialized.buffer_length = size;
   serialized.buffer_capacity = size;
   if (rmw_deserialize(&serialized, request_type, &request) != RMW_RET_OK) {
-    fprintf(stderr, "what_if_load: error: %s is not a Predict.Request\n", request_path);
+    fprintf(stderr, "what_if_c.load: error: %s is not a Predict.Request\n", request_path);
     return 2;
   }
   free(bytes);
@@ -488,7 +488,7 @@ static int run(int argc, char ** argv)
       "rcl_service_server_is_available"), !available)
     {
       if (monotonic_s() > ready_by) {
-        fprintf(stderr, "what_if_load: error: no %s within 30 s\n", service);
+        fprintf(stderr, "what_if_c.load: error: no %s within 30 s\n", service);
         return 2;
       }
       usleep(10000);

@@ -1,12 +1,11 @@
-"""The retry time a "busy" answer gives (hybrid_predictor.retry_hint)."""
+"""The retry time a "busy" answer gives (what_if_c.door.Hint, the door's own in C)."""
 
 import pytest
-
-from hybrid_predictor.retry_hint import RetryHint
+from what_if_c.door import Hint
 
 
 def test_refused_clients_are_spread_one_service_time_apart_after_the_running_one():
-    hint = RetryHint(longest=10.0, smoothing=1.0)
+    hint = Hint(longest=10.0, smoothing=1.0)
     hint.admitted(0.0)
     hint.finished(0.0, 0.5)                # one answer: the service time is 0.5 s
     hint.admitted(1.0)                     # the running request, expected done at 1.5
@@ -16,7 +15,7 @@ def test_refused_clients_are_spread_one_service_time_apart_after_the_running_one
 
 
 def test_a_request_waiting_behind_another_starts_its_service_when_that_one_finishes():
-    hint = RetryHint(longest=10.0, smoothing=1.0)
+    hint = Hint(longest=10.0, smoothing=1.0)
     hint.admitted(0.0)
     hint.admitted(0.1)                     # waits its turn behind the first
     hint.finished(0.0, 1.0)
@@ -25,7 +24,7 @@ def test_a_request_waiting_behind_another_starts_its_service_when_that_one_finis
 
 
 def test_hints_never_exceed_the_longest_however_many_were_refused():
-    hint = RetryHint(longest=2.0, smoothing=1.0)
+    hint = Hint(longest=2.0, smoothing=1.0)
     hint.admitted(0.0)
     hint.finished(0.0, 0.5)
     hint.admitted(1.0)
@@ -34,7 +33,7 @@ def test_hints_never_exceed_the_longest_however_many_were_refused():
 
 
 def test_old_hints_do_not_push_new_clients_back():
-    hint = RetryHint(longest=10.0, smoothing=1.0)
+    hint = Hint(longest=10.0, smoothing=1.0)
     hint.admitted(0.0)
     hint.finished(0.0, 0.5)
     hint.admitted(1.0)
@@ -46,21 +45,21 @@ def test_old_hints_do_not_push_new_clients_back():
 
 
 def test_before_any_answer_the_running_request_is_taken_as_half_done():
-    hint = RetryHint(longest=10.0)
+    hint = Hint(longest=10.0)
     hint.admitted(0.0)
     assert hint.refused(0.6) == pytest.approx(0.6)
 
 
 def test_nothing_admitted_means_retry_at_once_and_bad_settings_are_refused():
-    assert RetryHint(longest=1.0).refused(5.0) == 0.0
+    assert Hint(longest=1.0).refused(5.0) == 0.0
     with pytest.raises(ValueError, match='longest'):
-        RetryHint(longest=0.0)
+        Hint(longest=0.0)
     with pytest.raises(ValueError, match='smoothing'):
-        RetryHint(longest=1.0, smoothing=0.0)
+        Hint(longest=1.0, smoothing=0.0)
 
 
 def test_service_time_is_a_running_mean():
-    hint = RetryHint(longest=10.0, smoothing=0.5)
+    hint = Hint(longest=10.0, smoothing=0.5)
     for start, end in ((0.0, 1.0), (2.0, 5.0)):
         hint.admitted(start)
         hint.finished(start, end)

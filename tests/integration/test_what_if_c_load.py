@@ -1,5 +1,5 @@
 """
-The soak's C clients (package what_if_load) against a stand-in Predict service, over DDS.
+The soak's C clients (package what_if_c.load) against a stand-in Predict service, over DDS.
 
 The stand-in answers in turn busy, with success and with a refusal, and counts what it
 was sent; the clients' figures must agree with it kind by kind, in the format the soak
@@ -73,7 +73,7 @@ class StandIn:
 
 
 def load_command(tmp_path, *options):
-    return [sys.executable, '-m', 'what_if_load', '--service', SERVICE,
+    return [sys.executable, '-m', 'what_if_c.load', '--service', SERVICE,
             '--request', str(tmp_path / 'request.cdr'), '--dir', str(tmp_path),
             '--name', 'c0', *options]
 
@@ -134,12 +134,12 @@ def test_a_bad_command_line_is_refused_with_one_line(tmp_path, options, says):
     done = subprocess.run(load_command(tmp_path, *options), env=child_environment(),
                           capture_output=True, text=True, timeout=30)
     assert done.returncode == 2
-    assert done.stderr.splitlines()[0] == f'what_if_load: error: {says}'
+    assert done.stderr.splitlines()[0] == f'what_if_c.load: error: {says}'
 
 
 def test_help_says_what_the_clients_do():
-    done = subprocess.run([sys.executable, '-m', 'what_if_load', '--help'],
+    done = subprocess.run([sys.executable, '-m', 'what_if_c.load', '--help'],
                           env=child_environment(), capture_output=True, text=True, timeout=30)
     assert done.returncode == 0, done.stderr
-    assert done.stdout.startswith('usage: what_if_load --service NAME')
+    assert done.stdout.startswith('usage: python -m what_if_c.load --service NAME')
     assert '--busy-backoff' in done.stdout

@@ -1,0 +1,14 @@
+"""
+The what-if service's parts in C over rcl, where the interpreter lock would hold them up.
+
+- ``door``: the predictor's ``~/predict`` service on a thread of its own, admitting at
+  most ``service_capacity`` requests for the node's Python and answering the rest
+  "busy" at once, with the time to come back, without the interpreter.
+- ``load`` (``python -m what_if_c.load --help``): the service soak's clients, which
+  convert nothing to Python, so the soak measures the node and not a client's own
+  interpreter (a Python client converts each 1.65 MB answer under its lock, and a
+  busy answer arriving meanwhile waits).
+
+Both are Python extensions rather than programs: the ROS wheels' librcl needs
+libraries that need the interpreter's symbols.
+"""

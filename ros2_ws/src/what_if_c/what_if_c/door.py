@@ -1,0 +1,28 @@
+"""
+The predictor's what-if service in C: admission and "busy" answers off the interpreter.
+
+``open_door(node, name, capacity, longest)`` creates the ``Predict`` service ``name``
+on an rclpy node; a thread of the door's own takes every request, admits at most
+``capacity`` at a time for the node (``Door.take()``, answered with ``Door.answer``)
+and answers the rest "busy" at once with ``retry_after`` (``Hint``: the running
+request's expected end for the first refused client, one service time later for each
+next, at most ``longest`` s). ``Door.close()`` before the node is destroyed.
+"""
+
+from __future__ import annotations
+
+from what_if_c._door import MAX_CAPACITY, Door, Hint
+
+__all__ = ['MAX_CAPACITY', 'Door', 'Hint', 'open_door']
+
+
+def open_door(node, name: str, capacity: int, longest: float) -> Door:
+    """Return a Door serving ``Predict`` as ``name`` (resolved by rcl) on ``node``."""
+    from rclpy.type_support import check_for_type_support
+
+    from hybrid_predictor_interfaces.srv import Predict
+
+    # The door answers busy with Predict's own C message: it serves no other type.
+    check_for_type_support(Predict)
+    return Door(node.handle.pointer, node.context.handle.pointer, name, Predict, capacity,
+                longest)
