@@ -145,9 +145,6 @@ class PredictorNode(Node):
         p = declare_from_specs(self, load_specs(package_config('hybrid_predictor',
                                                                'predictor.yaml')))
         self.p = p
-        sys.setswitchinterval(p['gil_switch_interval'])
-        self.get_logger().info(f'interpreter switch interval {sys.getswitchinterval() * 1e3:g} '
-                               f'ms (gil_switch_interval)')
         path = Path(p['model_path']) if p['model_path'] else default_model_path()
         self.engine = Forecaster.from_checkpoint(path, p['relative_threshold'])
         self.spec, vessel_note = served_vessel(p['vessel'], self.engine.spec, str(path))
