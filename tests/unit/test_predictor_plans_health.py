@@ -239,3 +239,13 @@ def test_health_levels_follow_what_happens_on_the_nodes_clock():
     assert level == health.WARN and 'bound' in message
     h.clock_jumped(3.0)   # /clock went back: silence counts from the jump
     assert 'no forecast' not in h.report(3.5, None, 30, {'non_finite': 10})[1]
+
+
+def test_a_service_that_answers_no_more_is_an_error_even_before_any_input():
+    h = health.Health(silence_error=1.5, max_age=5.0)
+    h.service_stopped = 'waiting for requests failed (1): error not set'
+    level, message, _ = h.report(0.0, None, 0, {})
+    assert level == health.ERROR
+    assert message == '~/predict answers no more: waiting for requests failed (1): error not set'
+    h.service_stopped = ''
+    assert h.report(0.0, None, 0, {})[0] == health.STALE   # the door answers again

@@ -11,8 +11,9 @@ source.
   (the message adds why the latest window could not be formed), when the newest
   accepted state is older than ``max_age`` (inputs stale), when no state was accepted
   for ``watchdog`` seconds of wall time, when (with use_sim_time) the node's clock has
-  not moved for ``watchdog`` wall seconds, when more than one node publishes /clock, or
-  when the state topic carries two live time lines (two sources);
+  not moved for ``watchdog`` wall seconds, when more than one node publishes /clock,
+  when the state topic carries two live time lines (two sources), or when ``~/predict``
+  answers no more (``service_stopped``: its door's thread stopped, and why);
 - WARN when more than ``rejection_warn_fraction`` of the inputs offered since the
   previous report were rejected, when forecasts were withheld (non-finite or outside
   the vessel limits) since then, when the LSTM keeps hitting its bound, when the source's
@@ -48,6 +49,7 @@ class Health:
     state_topic: str = 'the state topic'   # as the node resolved it, for messages
     unbounded: str = ''           # why the model is served unbounded unasked; '' otherwise
     departure: str = ''           # how the vessel departs from its model; '' otherwise
+    service_stopped: str = ''     # why ~/predict answers no more; '' while it does
     started: float | None = None  # node clock (s) of the first accepted input
     last_state_wall: float | None = None     # wall clock (s) of the latest accepted state
     last_forecast_wall: float | None = None  # wall clock (s) of the latest forecast
@@ -157,9 +159,11 @@ class Health:
         self._offered_at_last_report = accepted + total_rejected
         self._withheld_at_last_report = self.withheld
 
-        if accepted + total_rejected == 0:
-            return STALE, f'waiting for input: {self.window_reason}', values
         errors, warnings = [], []
+        if self.service_stopped:
+            errors.append(f'~/predict answers no more: {self.service_stopped}')
+        if accepted + total_rejected == 0 and not errors:
+            return STALE, f'waiting for input: {self.window_reason}', values
         if clock_publishers is not None and len(clock_publishers) > 1:
             errors.append(f'{len(clock_publishers)} publishers on /clock '
                           f'({", ".join(clock_publishers)}): the node\'s clock jumps '

@@ -701,6 +701,7 @@ class PredictorNode(Node):
             skill_counts = {**self.skill.counts, **self.hindsight.counts}
         with self.lock:
             self.health.departure = departure_line
+            self.health.service_stopped = self.door.failure or ''
             rejected = self.window.rejected_counts()
             accepted = sum(s.counts.accepted for s in self.window.streams.values())
             rejected['malformed'] = counts.pop('malformed_inputs')
