@@ -634,7 +634,10 @@ class PredictorNode(Node):
     def _take_admitted(self) -> None:
         # Until the door closes: each admitted request is answered on the pool.
         while (taken := self.door.take()) is not None:
-            self.answering.submit(self._answer, *taken)
+            try:
+                self.answering.submit(self._answer, *taken)
+            except RuntimeError:   # the pool shut down: the node is being destroyed
+                return
         if self.door.failure:
             self.get_logger().error(f'~/predict stopped: {self.door.failure}')
 
