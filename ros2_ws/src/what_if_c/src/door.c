@@ -672,12 +672,16 @@ static void stop(DoorObject * self, bool finish)
     pthread_mutex_unlock(&self->lock);
     Py_END_ALLOW_THREADS
     self->ready = false;
-    for (pending_t * p = self->head, * next; p; p = next) {
+    /* Taken from the queue under the lock: a take() under way pops under it too. */
+    pthread_mutex_lock(&self->lock);
+    pending_t * left = self->head;
+    self->head = self->tail = NULL;
+    pthread_mutex_unlock(&self->lock);
+    for (pending_t * p = left, * next; p; p = next) {
       next = p->next;
       self->destroy_request(p->request);
       free(p);
     }
-    self->head = self->tail = NULL;
     (void)!rcl_wait_set_fini(&self->wait_set);
     (void)!rcl_guard_condition_fini(&self->wake);
     (void)!rcl_service_fini(&self->service, self->node);
