@@ -212,6 +212,7 @@ typedef struct pending_s
 typedef struct
 {
   bool used;
+  bool answering;        /* its answer is being sent: the token is spent */
   unsigned generation;   /* told apart from an earlier request in the same slot */
   rmw_request_id_t id;
   double admitted_at;
@@ -533,7 +534,7 @@ static bool answer_failure(DoorObject * self, rmw_request_id_t * id, const char 
 /* Release a slot after its answer (or its failure), at now. Holds the lock. */
 static void release_slot(DoorObject * self, int slot, double now)
 {
-  self->slots[slot].used = false;
+  self->slots[slot].used = self->slots[slot].answering = false;
   hint_finished(&self->hint, self->slots[slot].admitted_at, now);
 }
 
@@ -573,7 +574,7 @@ static PyObject * Door_take(DoorObject * self, PyObject * unused)
 static int token_slot(DoorObject * self, unsigned token)
 {
   int slot = (int)(token & 0xff);
-  if (slot >= self->capacity || !self->slots[slot].used ||
+  if (slot >= self->capacity || !self->slots[slot].used || self->slots[slot].answering ||
     self->slots[slot].generation != token >> 8)
   {
     PyErr_Format(PyExc_ValueError, "no request in progress has token %u", token);
@@ -595,6 +596,7 @@ static PyObject * Door_answer(DoorObject * self, PyObject * args)
   bool open = begin_send(self);
   int slot = open ? token_slot(self, token) : -1;
   rmw_request_id_t id = slot >= 0 ? self->slots[slot].id : (rmw_request_id_t){0};
+  if (slot >= 0) {self->slots[slot].answering = true;}   /* one answer per request */
   pthread_mutex_unlock(&self->lock);
   if (slot < 0) {
     if (open) {end_send(self);}
