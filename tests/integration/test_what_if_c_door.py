@@ -152,3 +152,15 @@ def test_closing_while_requests_keep_coming_neither_crashes_nor_hangs(graph):
     assert counts['requests'] <= 60 and counts['refused'] <= counts['requests']
     assert all(a.success or a.message.startswith('busy') for a in answered)
     assert door.take() is None and door.failure is None
+
+
+def test_a_door_for_another_service_type_is_refused(graph):
+    from rclpy.type_support import check_for_type_support
+    from std_srvs.srv import Trigger
+    from what_if_c.door import Door
+
+    server, _, _ = graph
+    check_for_type_support(Trigger)
+    with pytest.raises(TypeError, match='Predict only'):
+        Door(server.handle.pointer, server.context.handle.pointer, '~/predict', Trigger, 1, 5.0)
+    assert SERVICE not in dict(server.get_service_names_and_types())

@@ -237,9 +237,7 @@ class PredictorNode(Node):
         self.door = open_door(self, '~/predict', p['service_capacity'], p['max_retry_after'])
         self.answering = ThreadPoolExecutor(max_workers=p['service_capacity'],
                                             thread_name_prefix='predict')
-        self.door_thread = threading.Thread(target=self._take_admitted, name='predict-door',
-                                            daemon=True)
-        self.door_thread.start()
+        threading.Thread(target=self._take_admitted, name='predict-door', daemon=True).start()
         self.diag_timer = self.create_timer(p['diagnostics_period'], self._publish_diagnostics,
                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.jump_handle = None

@@ -36,8 +36,6 @@
 
 #define MAX_CAPACITY 64
 
-typedef void * create_message_t(void);
-typedef void destroy_message_t(void *);
 typedef bool convert_from_py_t(PyObject *, void *);
 typedef PyObject * convert_to_py_t(void *);
 
@@ -202,13 +200,6 @@ static PyTypeObject HintType = {
 
 /* ------------------------------------------------------------------ the door */
 
-typedef struct pending_s
-{
-  int slot;
-  void * request;        /* the request's C message, for Python to take */
-  struct pending_s * next;
-} pending_t;
-
 typedef struct
 {
   bool used;
@@ -216,13 +207,13 @@ typedef struct
   unsigned generation;   /* told apart from an earlier request in the same slot */
   rmw_request_id_t id;
   double admitted_at;
+  hybrid_predictor_interfaces__srv__Predict_Request * request;   /* until take() */
 } slot_t;
 
 typedef struct
 {
   PyObject_HEAD
   rcl_node_t * node;
-  rcl_context_t * context;
   rcl_service_t service;
   rcl_guard_condition_t wake;
   rcl_wait_set_t wait_set;
@@ -230,23 +221,22 @@ typedef struct
   pthread_t thread;
   bool running;
   pthread_mutex_t lock;
-  pthread_cond_t queued;
+  pthread_cond_t waiting;   /* a request was queued for take(), or the door closes */
   pthread_cond_t idle;   /* no Python thread is sending on the service */
   int sending;           /* Python threads sending on the service now */
   int capacity;
   slot_t slots[MAX_CAPACITY];
   hint_t hint;
   long requests, refused;
-  pending_t * head, * tail;
+  /* Admitted requests not yet taken, in order: slot indices, as a ring (each admitted
+     request holds a slot, so at most capacity wait). */
+  int queue[MAX_CAPACITY];
+  int queue_first, queued;
   bool closing;          /* the thread stops; take() gives None once the queue is empty */
   bool shut;             /* close() under way: nothing more is sent */
   char failure[1200];    /* why the door's thread stopped, if it did */
   PyObject * request_class, * response_class;
-  create_message_t * create_request;
-  destroy_message_t * destroy_request;
   convert_to_py_t * request_to_py;
-  create_message_t * create_response;
-  destroy_message_t * destroy_response;
   convert_from_py_t * response_from_py;
   hybrid_predictor_interfaces__srv__Predict_Response refusal;   /* the thread's own */
 } DoorObject;
@@ -280,7 +270,8 @@ static void answer_refusal(DoorObject * d, rmw_request_id_t * id, const char * m
 static bool take_requests(DoorObject * d)
 {
   for (;;) {
-    void * request = d->create_request();
+    hybrid_predictor_interfaces__srv__Predict_Request * request =
+      hybrid_predictor_interfaces__srv__Predict_Request__create();
     if (!request) {
       note_failure(d, "creating a request message", RCL_RET_BAD_ALLOC);
       return false;
@@ -288,7 +279,7 @@ static bool take_requests(DoorObject * d)
     rmw_service_info_t info;
     rcl_ret_t ret = rcl_take_request_with_info(&d->service, &info, request);
     if (ret != RCL_RET_OK) {
-      d->destroy_request(request);
+      hybrid_predictor_interfaces__srv__Predict_Request__destroy(request);
       if (ret == RCL_RET_SERVICE_TAKE_FAILED) {return true;}
       note_failure(d, "rcl_take_request_with_info", ret);
       return false;
@@ -300,34 +291,26 @@ static bool take_requests(DoorObject * d)
     for (int k = 0; k < d->capacity && slot < 0; ++k) {
       if (!d->slots[k].used) {slot = k;}
     }
-    pending_t * admitted = slot >= 0 ? malloc(sizeof(pending_t)) : NULL;
-    if (admitted) {
+    if (slot >= 0) {
       slot_t * s = &d->slots[slot];
       s->used = true;
       s->generation = (s->generation + 1) & 0xffffff;   /* tokens are 32 bits */
       s->id = info.request_id;
       s->admitted_at = now;
+      s->request = request;
       hint_admitted(&d->hint, now);
-      admitted->slot = slot;
-      admitted->request = request;
-      admitted->next = NULL;
-      if (d->tail) {d->tail->next = admitted;} else {d->head = admitted;}
-      d->tail = admitted;
-      pthread_cond_signal(&d->queued);
+      d->queue[(d->queue_first + d->queued++) % MAX_CAPACITY] = slot;
+      pthread_cond_signal(&d->waiting);
       pthread_mutex_unlock(&d->lock);
       continue;
     }
     d->refused++;
-    double retry_after = slot >= 0 ? 0.0 : hint_refused(&d->hint, now);
+    double retry_after = hint_refused(&d->hint, now);
     pthread_mutex_unlock(&d->lock);
-    d->destroy_request(request);
+    hybrid_predictor_interfaces__srv__Predict_Request__destroy(request);
     char message[160];
-    if (slot >= 0) {   /* out of memory for the queue: refused, not lost */
-      snprintf(message, sizeof(message), "internal error: no memory to queue the request");
-    } else {
-      snprintf(message, sizeof(message), "busy: %d requests in progress; retry in %.2f s",
-        d->capacity, retry_after);
-    }
+    snprintf(message, sizeof(message), "busy: %d requests in progress; retry in %.2f s",
+      d->capacity, retry_after);
     answer_refusal(d, &info.request_id, message, retry_after);
   }
 }
@@ -356,7 +339,7 @@ static void * door_main(void * arg)
   /* Python waiting in take() learns that nothing more will come. */
   pthread_mutex_lock(&d->lock);
   d->closing = true;
-  pthread_cond_broadcast(&d->queued);
+  pthread_cond_broadcast(&d->waiting);
   pthread_mutex_unlock(&d->lock);
   return NULL;
 }
@@ -365,8 +348,6 @@ static void * door_main(void * arg)
 typedef union
 {
   void * pointer;
-  create_message_t * create;
-  destroy_message_t * destroy;
   convert_to_py_t * to_py;
   convert_from_py_t * from_py;
 } function_t;
@@ -428,21 +409,19 @@ static int Door_init(DoorObject * self, PyObject * args, PyObject * kwargs)
   const rosidl_service_type_support_t * type_support = support == Py_None ? NULL :
     PyCapsule_GetPointer(support, NULL);
   Py_DECREF(support);
-  self->create_request = capsule_function(self->request_class, "_CREATE_ROS_MESSAGE").create;
-  self->destroy_request = capsule_function(self->request_class, "_DESTROY_ROS_MESSAGE").destroy;
   self->request_to_py = capsule_function(self->request_class, "_CONVERT_TO_PY").to_py;
-  self->create_response = capsule_function(self->response_class, "_CREATE_ROS_MESSAGE").create;
-  self->destroy_response =
-    capsule_function(self->response_class, "_DESTROY_ROS_MESSAGE").destroy;
   self->response_from_py = capsule_function(self->response_class, "_CONVERT_FROM_PY").from_py;
-  if (!type_support || !self->create_request || !self->destroy_request ||
-    !self->request_to_py || !self->create_response || !self->destroy_response ||
-    !self->response_from_py)
-  {
+  if (!type_support || !self->request_to_py || !self->response_from_py) {
     if (!PyErr_Occurred()) {
       PyErr_SetString(PyExc_ValueError,
         "srv_type's support is not loaded (rclpy.type_support.check_for_type_support)");
     }
+    return -1;
+  }
+  /* The messages are handled as Predict's own C structs: no other type will do. */
+  if (type_support != ROSIDL_GET_SRV_TYPE_SUPPORT(hybrid_predictor_interfaces, srv, Predict)) {
+    PyErr_SetString(PyExc_TypeError,
+      "a Door serves hybrid_predictor_interfaces/srv/Predict only");
     return -1;
   }
   if (!hybrid_predictor_interfaces__srv__Predict_Response__init(&self->refusal)) {
@@ -450,10 +429,10 @@ static int Door_init(DoorObject * self, PyObject * args, PyObject * kwargs)
     return -1;
   }
   pthread_mutex_init(&self->lock, NULL);
-  pthread_cond_init(&self->queued, NULL);
+  pthread_cond_init(&self->waiting, NULL);
   pthread_cond_init(&self->idle, NULL);
   self->node = (rcl_node_t *)(uintptr_t)node;   /* from here on dealloc frees the above */
-  self->context = (rcl_context_t *)(uintptr_t)context;
+  rcl_context_t * rcl_context = (rcl_context_t *)(uintptr_t)context;
   self->capacity = capacity;
   hint_init(&self->hint, longest, smoothing);
 
@@ -468,14 +447,14 @@ static int Door_init(DoorObject * self, PyObject * args, PyObject * kwargs)
     return -1;
   }
   self->wake = rcl_get_zero_initialized_guard_condition();
-  if (!check_rcl(rcl_guard_condition_init(&self->wake, self->context,
+  if (!check_rcl(rcl_guard_condition_init(&self->wake, rcl_context,
     rcl_guard_condition_get_default_options()), "creating the door's guard condition"))
   {
     (void)!rcl_service_fini(&self->service, self->node);
     return -1;
   }
   self->wait_set = rcl_get_zero_initialized_wait_set();
-  if (!check_rcl(rcl_wait_set_init(&self->wait_set, 0, 1, 0, 0, 1, 0, self->context,
+  if (!check_rcl(rcl_wait_set_init(&self->wait_set, 0, 1, 0, 0, 1, 0, rcl_context,
     rcl_get_default_allocator()), "creating the door's wait set"))
   {
     (void)!rcl_guard_condition_fini(&self->wake);
@@ -541,22 +520,23 @@ static void release_slot(DoorObject * self, int slot, double now)
 static PyObject * Door_take(DoorObject * self, PyObject * unused)
 {
   (void)unused;
-  pending_t * next = NULL;
+  int slot = -1;
+  hybrid_predictor_interfaces__srv__Predict_Request * message = NULL;
   Py_BEGIN_ALLOW_THREADS
   pthread_mutex_lock(&self->lock);
-  while (!self->head && !self->closing) {pthread_cond_wait(&self->queued, &self->lock);}
-  next = self->head;
-  if (next) {
-    self->head = next->next;
-    if (!self->head) {self->tail = NULL;}
+  while (!self->queued && !self->closing) {pthread_cond_wait(&self->waiting, &self->lock);}
+  if (self->queued) {
+    slot = self->queue[self->queue_first];
+    self->queue_first = (self->queue_first + 1) % MAX_CAPACITY;
+    self->queued--;
+    message = self->slots[slot].request;
+    self->slots[slot].request = NULL;
   }
   pthread_mutex_unlock(&self->lock);
   Py_END_ALLOW_THREADS
-  if (!next) {Py_RETURN_NONE;}
-  PyObject * request = self->request_to_py(next->request);
-  self->destroy_request(next->request);
-  int slot = next->slot;
-  free(next);
+  if (slot < 0) {Py_RETURN_NONE;}
+  PyObject * request = self->request_to_py(message);
+  hybrid_predictor_interfaces__srv__Predict_Request__destroy(message);
   pthread_mutex_lock(&self->lock);
   unsigned token = ((unsigned)self->slots[slot].generation << 8) | (unsigned)slot;
   rmw_request_id_t id = self->slots[slot].id;
@@ -603,7 +583,8 @@ static PyObject * Door_answer(DoorObject * self, PyObject * args)
     if (!PyErr_Occurred()) {PyErr_SetString(PyExc_RuntimeError, "the door is closed");}
     return NULL;
   }
-  void * message = self->create_response();
+  hybrid_predictor_interfaces__srv__Predict_Response * message =
+    hybrid_predictor_interfaces__srv__Predict_Response__create();
   bool converted = message && self->response_from_py(response, message);
   rcl_ret_t ret = RCL_RET_ERROR;
   if (converted) {
@@ -611,7 +592,7 @@ static PyObject * Door_answer(DoorObject * self, PyObject * args)
     ret = rcl_send_response(&self->service, &id, message);
     Py_END_ALLOW_THREADS
   }
-  if (message) {self->destroy_response(message);}
+  hybrid_predictor_interfaces__srv__Predict_Response__destroy(message);
   end_send(self);
   if (!converted) {   /* the client is answered all the same */
     PyObject * type, * value, * traceback;
@@ -656,7 +637,7 @@ static void stop(DoorObject * self, bool finish)
   if (self->running) {
     pthread_mutex_lock(&self->lock);
     self->closing = true;
-    pthread_cond_broadcast(&self->queued);
+    pthread_cond_broadcast(&self->waiting);
     pthread_mutex_unlock(&self->lock);
     (void)!rcl_trigger_guard_condition(&self->wake);
     Py_BEGIN_ALLOW_THREADS
@@ -676,14 +657,13 @@ static void stop(DoorObject * self, bool finish)
     self->ready = false;
     /* Taken from the queue under the lock: a take() under way pops under it too. */
     pthread_mutex_lock(&self->lock);
-    pending_t * left = self->head;
-    self->head = self->tail = NULL;
-    pthread_mutex_unlock(&self->lock);
-    for (pending_t * p = left, * next; p; p = next) {
-      next = p->next;
-      self->destroy_request(p->request);
-      free(p);
+    for (; self->queued > 0; self->queued--) {
+      slot_t * s = &self->slots[self->queue[self->queue_first]];
+      hybrid_predictor_interfaces__srv__Predict_Request__destroy(s->request);
+      s->request = NULL;
+      self->queue_first = (self->queue_first + 1) % MAX_CAPACITY;
     }
+    pthread_mutex_unlock(&self->lock);
     (void)!rcl_wait_set_fini(&self->wait_set);
     (void)!rcl_guard_condition_fini(&self->wake);
     (void)!rcl_service_fini(&self->service, self->node);
@@ -706,7 +686,7 @@ static void Door_dealloc(DoorObject * self)
   if (self->node) {
     hybrid_predictor_interfaces__srv__Predict_Response__fini(&self->refusal);
     pthread_mutex_destroy(&self->lock);
-    pthread_cond_destroy(&self->queued);
+    pthread_cond_destroy(&self->waiting);
     pthread_cond_destroy(&self->idle);
   }
   Py_XDECREF(self->request_class);
