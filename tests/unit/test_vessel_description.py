@@ -50,7 +50,7 @@ def test_round_trip_through_a_manifest_or_checkpoint():
     (lambda d: d.update(states=['u', 'v']), "states lack ['r']"),
     (lambda d: d.update(states=['u', 'v', 'p', 'r']), 'roll needs both'),
     (lambda d: d.update(states=['v', 'u', 'r']), 'list states in the order'),
-    (lambda d: d.update(states=['u', 'v', 'r', 'q']), "unknown states ['q']"),
+    (lambda d: d.update(states=['u', 'v', 'r', 'beta']), "unknown states ['beta']"),
     (lambda d: d['actuators']['rpm'].update(kind='jet'), "kind is 'jet'"),
     (lambda d: d['actuators']['rpm'].update(unit='rpm'), "unit is 'rpm'"),
     (lambda d: d['actuators']['rudder'].update(range=[0.6, -0.6]), 'low < high'),

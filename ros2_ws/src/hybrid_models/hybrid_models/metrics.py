@@ -10,9 +10,13 @@ sample k:
     x_k = dt * sum_{j<=k} (u_j cos psi_{j-1} - v_j cos phi_j sin psi_{j-1})
     y_k = dt * sum_{j<=k} (u_j sin psi_{j-1} + v_j cos phi_j cos psi_{j-1})
 
-with psi_{-1} = 0. This is the one dead reckoning of the project: the predictor's
-published track (``hybrid_predictor.plans.track``) is this one, rotated and shifted.
-The error at step k is the Euclidean distance between predicted and true (x_k, y_k).
+with psi_{-1} = 0. A 6-DOF vehicle (``Vessel.is_spatial``) moves in space the same way:
+its heading takes psi' = (q sin phi + r cos phi) / cos theta and its position
+R(phi_j, theta_j, psi_{j-1}) (u_j, v_j, w_j) per step (``vessel_physics.integrator``),
+so its track has a third column, down. This is the one dead reckoning of the project:
+the predictor's published track (``hybrid_predictor.plans.track``) is this one, rotated
+and shifted. The error at step k is the Euclidean distance between predicted and true
+positions.
 The reported mean runs over all steps and forecasts; its 95 % confidence interval is
 1.96 * std / sqrt(n) with std and n over the per-forecast mean errors (forecasts, not
 steps, are the sampling units; overlapping forecasts are still correlated, so read the
@@ -31,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from vessel_description import Vessel
+from vessel_physics.integrator import attitude_rates, body_to_ned
 
 Z95 = 1.959963984540054
 REPORTED_POINTS = 4   # the horizon profile reports errors at every quarter of the horizon
@@ -40,9 +45,12 @@ def dead_reckoning(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]
     """
     Integrate states (..., H, n_state) into a track from the origin, heading 0 (module doc).
 
-    Return positions (..., H, 2) in m (north, east) and headings (..., H) in rad, both at
-    the end of each step. A vessel without roll moves as if phi = 0.
+    Return positions (..., H, 2) in m (north, east; (..., H, 3) with down for a 6-DOF
+    vehicle) and headings (..., H) in rad, both at the end of each step. A vessel without
+    roll moves as if phi = 0.
     """
+    if spec.is_spatial:
+        return _dead_reckoning_3d(z, spec)
     dt = spec.dt
     u, v, r = (z[..., spec.state_index(n)] for n in ('u', 'v', 'r'))
     heading = dt * np.cumsum(r, axis=-1)
@@ -54,8 +62,18 @@ def dead_reckoning(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]
     return xy, heading
 
 
+def _dead_reckoning_3d(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]:
+    """``dead_reckoning`` of a 6-DOF vehicle: positions (..., H, 3) NED, headings (..., H)."""
+    u, v, w, p, q, r, phi, theta = (z[..., spec.state_index(n)] for n in
+                                    ('u', 'v', 'w', 'p', 'q', 'r', 'phi', 'theta'))
+    heading = spec.dt * np.cumsum(attitude_rates(p, q, r, phi, theta)[2], axis=-1)
+    held = np.concatenate([np.zeros_like(heading[..., :1]), heading[..., :-1]], axis=-1)
+    velocity = np.stack(body_to_ned(u, v, w, phi, theta, held), axis=-1)
+    return spec.dt * np.cumsum(velocity, axis=-2), heading
+
+
 def positions(z: np.ndarray, spec: Vessel) -> np.ndarray:
-    """Return only the track (..., H, 2) in m of ``dead_reckoning``."""
+    """Return only the track (..., H, 2 or 3) in m of ``dead_reckoning``."""
     return dead_reckoning(z, spec)[0]
 
 

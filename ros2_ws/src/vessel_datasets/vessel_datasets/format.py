@@ -168,7 +168,7 @@ def write_dataset(out_dir: str | os.PathLike, runs: Mapping[str, pd.DataFrame], 
 def column_docs(vessel: Vessel) -> dict[str, dict[str, str]]:
     """Return unit and meaning of every column a run of ``vessel`` may have."""
     docs = vessel.column_docs()
-    for name in vessel.state_names + ('psi', 'x', 'y'):
+    for name in vessel.state_names + vessel.pose_names:
         docs[name + TRUE_SUFFIX] = {'unit': docs[name]['unit'],
                                     'description': f'noise-free truth of {name} '
                                                    f'(simulated data only)'}

@@ -28,9 +28,11 @@ from .vocabulary import (
     ENVIRONMENT,
     ENVIRONMENT_MIRROR,
     LIMITED_ENVIRONMENT,
+    PLANAR_POSE,
     PLANAR_STATES,
     POSE,
     ROLL_STATES,
+    SPATIAL_STATES,
     STATE_MIRROR,
     STATES,
     WATERS,
@@ -146,8 +148,25 @@ class Vessel:
 
     @property
     def has_roll(self) -> bool:
-        """Whether roll (p, phi) is modelled (4-DOF) or not (3-DOF)."""
+        """Whether roll (p, phi) is modelled (4-DOF, 6-DOF) or not (3-DOF)."""
         return 'phi' in self.states
+
+    @property
+    def is_spatial(self) -> bool:
+        """Whether the vehicle moves in all six DOF (w, q, theta modelled: a multirotor)."""
+        return 'theta' in self.states
+
+    @property
+    def pose_names(self) -> tuple[str, ...]:
+        """Pose columns of its datasets: heading, position north and east (and down)."""
+        return PLANAR_POSE + (('z',) if self.is_spatial else ())
+
+    def require_planar(self, tool: str) -> None:
+        """Refuse a 6-DOF vehicle (VesselError, one line) in a tool made for the plane."""
+        if self.is_spatial:
+            raise VesselError(f'{tool} is for vessels in the plane; vehicle {self.name!r} '
+                              f'({self.source}) is a 6-DOF vehicle (states '
+                              f'{list(self.states)})')
 
     @property
     def length_m(self) -> float:
@@ -174,7 +193,8 @@ class Vessel:
         docs = {'t': {'unit': 's', 'description': "time since the run's first sample"}}
         docs.update({s: {'unit': STATES[s][0], 'description': STATES[s][1]}
                      for s in self.states})
-        docs.update({k: {'unit': u, 'description': d} for k, (u, d) in POSE.items()})
+        docs.update({k: {'unit': POSE[k][0], 'description': POSE[k][1]}
+                     for k in self.pose_names})
         for a in self.actuators:
             docs[a.name] = {'unit': a.unit,
                             'description': a.description or ACTUATOR_KINDS[a.kind][1]}
@@ -185,7 +205,7 @@ class Vessel:
     @property
     def dataset_columns(self) -> tuple[str, ...]:
         """Columns every run table of this vessel has: time, states, pose, controls."""
-        return ('t',) + self.states + tuple(POSE) + self.control_names
+        return ('t',) + self.states + self.pose_names + self.control_names
 
     def mirror_maps(self) -> tuple[list[float], list[int], list[float]]:
         """
@@ -320,6 +340,10 @@ def _states(value: Any, where: str) -> tuple[str, ...]:
         raise VesselError(f'{where}: states lack {missing}; every vessel has {PLANAR_STATES}')
     if any(s in value for s in ROLL_STATES) and not all(s in value for s in ROLL_STATES):
         raise VesselError(f'{where}: roll needs both {list(ROLL_STATES)} or neither')
+    spatial = SPATIAL_STATES + ROLL_STATES
+    if any(s in value for s in SPATIAL_STATES) and not all(s in value for s in spatial):
+        raise VesselError(f'{where}: a 6-DOF vehicle has all of {list(spatial)} (heave, '
+                          f'pitch and roll), got {value}')
     if value != [s for s in order if s in value]:
         raise VesselError(f'{where}: list states in the order {order}, got {value}')
     return tuple(value)

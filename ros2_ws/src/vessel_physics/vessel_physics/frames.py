@@ -71,13 +71,16 @@ def twist_flu_to_frd(vx, vy, wx, wz):
 
 def state_signs_frd_to_flu(state_names) -> np.ndarray:
     """
-    Return the sign of each model state (u, v, p, r, phi) going from FRD to FLU.
+    Return the sign of each model state (u, v, w, p, q, r, phi, theta) from FRD to FLU.
 
-    Velocities and rates follow ``twist_frd_to_flu``; roll phi is the same angle in
-    both frames. The map is its own inverse, so the same signs take FLU back to FRD.
+    Velocities and rates are body vectors (``body_frd_to_flu``); roll phi is the same
+    angle in both frames, pitch theta changes sign with the y axis it turns about
+    (``orientation_ned_to_enu``). The map is its own inverse, so the same signs take
+    FLU back to FRD.
     """
-    u, v, p, r = twist_frd_to_flu(1.0, 1.0, 1.0, 1.0)
-    signs = {'u': u, 'v': v, 'p': p, 'r': r, 'phi': 1.0}
+    u, v, w = body_frd_to_flu(1.0, 1.0, 1.0)
+    p, q, r = body_frd_to_flu(1.0, 1.0, 1.0)
+    signs = {'u': u, 'v': v, 'w': w, 'p': p, 'q': q, 'r': r, 'phi': 1.0, 'theta': -1.0}
     return np.array([signs[name] for name in state_names])
 
 

@@ -1,11 +1,17 @@
 """
-Fixed-step RK4 and the 4-DOF kinematics; array-agnostic so models can reuse them.
+Fixed-step RK4 and the kinematics of vessels and 6-DOF vehicles; array-agnostic.
 
-Kinematics for roll phi, pitch 0 (Fossen 2011, Euler angles, zyx): the body velocity
-(u, v, 0) maps to NED as x' = u cos psi - v cos phi sin psi, y' = u sin psi +
-v cos phi cos psi, and psi' = (q sin phi + r cos phi) / cos theta = r cos phi, phi' = p.
-The exact psi' = r cos phi is used (the MSS model's psi' = r differs by < 0.2 % at
-3 degrees of roll). psi is never wrapped.
+Euler angles ZYX (Fossen 2021, eq. 2.29 and 2.41): the body velocity (u, v, w) maps to
+NED as R(phi, theta, psi) (u, v, w) and the attitude follows the body rates as
+
+    phi' = p + (q sin phi + r cos phi) tan theta
+    theta' = q cos phi - r sin phi
+    psi' = (q sin phi + r cos phi) / cos theta
+
+A vessel in the plane has pitch 0 and no heave: x' = u cos psi - v cos phi sin psi,
+y' = u sin psi + v cos phi cos psi, psi' = r cos phi (the MSS model's psi' = r differs by
+< 0.2 % at 3 degrees of roll) and phi' = p. psi is never wrapped; pitch must stay
+inside +-pi/2 (the Euler angles' singularity).
 """
 
 from __future__ import annotations
@@ -66,3 +72,35 @@ def kinematics(u, v, r, phi, psi):
     cos_psi, sin_psi, cos_phi = xp.cos(psi), xp.sin(psi), xp.cos(phi)
     v_level = v * cos_phi
     return (u * cos_psi - v_level * sin_psi, u * sin_psi + v_level * cos_psi, r * cos_phi)
+
+
+def attitude_rates(p, q, r, phi, theta):
+    """Return (phi', theta', psi') in rad/s for FRD body rates p, q, r at roll, pitch."""
+    xp = namespace(p, q, r, phi, theta)
+    sin_phi, cos_phi = xp.sin(phi), xp.cos(phi)
+    turn = q * sin_phi + r * cos_phi
+    cos_theta = xp.cos(theta)
+    return (p + turn * xp.sin(theta) / cos_theta, q * cos_phi - r * sin_phi,
+            turn / cos_theta)
+
+
+def body_to_ned(u, v, w, phi, theta, psi):
+    """Return the NED components (m/s) of the FRD body vector (u, v, w): R(phi, theta, psi)."""
+    xp = namespace(u, v, w, phi, theta, psi)
+    cf, sf = xp.cos(phi), xp.sin(phi)
+    ct, st = xp.cos(theta), xp.sin(theta)
+    cp, sp = xp.cos(psi), xp.sin(psi)
+    return (cp * ct * u + (cp * st * sf - sp * cf) * v + (cp * st * cf + sp * sf) * w,
+            sp * ct * u + (sp * st * sf + cp * cf) * v + (sp * st * cf - cp * sf) * w,
+            -st * u + ct * sf * v + ct * cf * w)
+
+
+def ned_to_body_3d(north, east, down, phi, theta, psi):
+    """Return the FRD body components of a NED vector: R(phi, theta, psi)^T (n, e, d)."""
+    xp = namespace(north, east, down, phi, theta, psi)
+    cf, sf = xp.cos(phi), xp.sin(phi)
+    ct, st = xp.cos(theta), xp.sin(theta)
+    cp, sp = xp.cos(psi), xp.sin(psi)
+    return (cp * ct * north + sp * ct * east - st * down,
+            (cp * st * sf - sp * cf) * north + (sp * st * sf + cp * cf) * east + ct * sf * down,
+            (cp * st * cf + sp * sf) * north + (sp * st * cf - cp * sf) * east + ct * cf * down)

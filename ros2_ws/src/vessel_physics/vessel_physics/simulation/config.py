@@ -606,7 +606,7 @@ def _noise(values: dict, vessel: Vessel, label: str) -> NoiseConfig:
 def measured_channels(vessel: Vessel) -> tuple[str, ...]:
     """Channels the simulated sensors measure, in the order of the noise vector."""
     wind = ('wind_speed', 'wind_dir') if 'wind' in vessel.environment else ()
-    return vessel.state_names + ('psi', 'x', 'y') + vessel.actuator_names + wind
+    return vessel.state_names + vessel.pose_names + vessel.actuator_names + wind
 
 
 def load_simulation(source: str | Path | Mapping | None = None,
