@@ -5,8 +5,8 @@ A column map -- the ``recordings.columns`` section of a vessel file, or a YAML f
 its own -- says how to read the files and which column gives each quantity, in which
 unit, frame and sign::
 
-    format: delimited          # the reader: delimited text
-    sep: whitespace            # whitespace | any one character (',', ';', a tab)
+    format: delimited          # the reader: delimited text (or parquet: no sep, skip_lines,
+    sep: whitespace            #   names, encoding) | whitespace | any one character (',', ';')
     skip_lines: 4              # lines before the table (titles, comments)
     header_row: false          # true: the first line after them names the columns
     names: [time, x0, y0, psi, ve, vn, r_deg, phi_deg, delta, rev]  # else col1, col2, ...
@@ -24,10 +24,17 @@ unit, frame and sign::
       delta: {column: delta, unit: deg, sign: -1}
     wind: {frame: frd, speed: {column: ws, unit: knots}, from_angle: {column: wd, unit: deg}}
 
-A quantity is a column name (read in the model unit) or ``{column, unit, sign,
-delay_s}``; a group (velocity, position, wind) takes a ``frame``, a shared ``unit``, a
-shared ``delay_s`` and one entry per component. Body quantities are FRD (sway, yaw
-rate, roll positive to starboard), headings from north towards east
+A 6-DOF vehicle (a multirotor) maps the third component of each group (velocity ``down``
+or ``heave``, position ``z``), ``pitch`` and all three body rates (``roll_rate``,
+``pitch_rate``, ``yaw_rate``: a gyro); its roll and pitch are in the frame of its heading
+convention (``east_counterclockwise``: ENU/FLU angles, pitch positive nose down).
+
+A quantity is a column name (read in the model unit) or ``{column, unit, sign, scale,
+delay_s}`` (``scale`` a factor after the unit, e.g. 1/6 for a motor's electrical rpm with
+six pole pairs given as ``unit: rpm``); a group (velocity, position, wind) takes a
+``frame``, a shared ``unit``, a shared ``delay_s`` and one entry per component. Body
+quantities are FRD (sway, yaw rate, roll positive to starboard), headings from north
+towards east
 (``north_clockwise``) or ENU yaw from east towards north (``east_counterclockwise``);
 earth-frame velocities (north, east) are turned into the body by the heading. Without
 ``velocity`` the body velocities come from the position track and the heading.
@@ -52,11 +59,13 @@ from vessel_description.vessel import plain, recording_map
 from .topic_map import TopicMap, TopicMapError, parse_topic_map
 
 FORMAT = 'delimited'
+FORMATS = (FORMAT, 'parquet')   # the readers: delimited text, Apache Parquet columns
+TEXT_KEYS = ('sep', 'skip_lines', 'header_row', 'names', 'encoding')  # delimited text only
 TABLE = 'table'   # the one source every column of a file belongs to
 KEYS = ('format', 'sep', 'skip_lines', 'header_row', 'names', 'encoding', 'time', 'rate_hz',
-        'run', 'velocity', 'yaw_rate', 'roll_rate', 'roll', 'heading', 'position',
-        'speed_over_ground', 'actuators', 'wind')
-ENTRY_KEYS = ('column', 'unit', 'sign', 'delay_s')
+        'run', 'velocity', 'yaw_rate', 'roll_rate', 'pitch_rate', 'roll', 'pitch', 'heading',
+        'position', 'speed_over_ground', 'actuators', 'wind')
+ENTRY_KEYS = ('column', 'unit', 'sign', 'scale', 'delay_s')
 KNOT = 1852.0 / 3600.0
 # kind -> unit -> factor to the model unit (the first of each kind).
 UNITS: dict[str, dict[str, float]] = {
@@ -68,7 +77,8 @@ UNITS: dict[str, dict[str, float]] = {
     'time': {'s': 1.0, 'ms': 1e-3},
     'degrees': {'deg': 1.0},  # latitude and longitude stay in degrees
 }
-ACTUATOR_KIND_UNITS = {'propeller': 'rate', 'rudder': 'angle', 'azimuth': 'angle'}
+ACTUATOR_KIND_UNITS = {'propeller': 'rate', 'rotor': 'rate', 'rudder': 'angle',
+                       'azimuth': 'angle'}
 HEADING_FRAMES = {'north_clockwise': 'ned_frd', 'east_counterclockwise': 'enu_flu'}
 # column-map group -> frame -> (topic-map group, frame, ((component, kind, entry), ...)).
 GROUP_FRAMES: dict[str, dict[str, tuple[str, str | None, tuple[tuple[str, str, str], ...]]]] = {
@@ -83,11 +93,23 @@ GROUP_FRAMES: dict[str, dict[str, tuple[str, str | None, tuple[tuple[str, str, s
     'wind': {f: ('wind', f, (('speed', 'speed', 'speed'), ('from_angle', 'angle', 'from_angle')))
              for f in ('frd', 'flu')},
 }
+# The third component a 6-DOF vehicle's group takes in each frame.
+SPATIAL_COMPONENTS = {('velocity', 'body'): ('heave', 'speed', 'heave'),
+                      ('velocity', 'earth'): ('down', 'speed', 'down'),
+                      ('position', 'ned'): ('z', 'length', 'z'),
+                      ('position', 'enu'): ('z', 'length', 'z')}
+# Angles and rates beyond the heading: key -> (kind, topic-map group, who maps it).
+ATTITUDE_KEYS = {'yaw_rate': ('rate', 'body_velocity', 'any'),
+                 'roll_rate': ('rate', 'body_velocity', 'roll'),
+                 'roll': ('angle', 'attitude', 'roll'),
+                 'pitch_rate': ('rate', 'body_velocity', 'spatial'),
+                 'pitch': ('angle', 'attitude', 'spatial')}
 
 
 # Topic-map entry -> the column-map key it came from, where the two differ.
 COLUMN_LABELS = {'body_velocity.yaw_rate': 'yaw_rate', 'body_velocity.roll_rate': 'roll_rate',
-                 'attitude.heading': 'heading', 'attitude.roll': 'roll',
+                 'body_velocity.pitch_rate': 'pitch_rate', 'attitude.heading': 'heading',
+                 'attitude.roll': 'roll', 'attitude.pitch': 'pitch',
                  'speed_over_ground.speed': 'speed_over_ground'}
 
 
@@ -107,6 +129,7 @@ class Column:
 class TableFormat:
     """How to read the files of a column map."""
 
+    format: str
     sep: str
     skip_lines: int
     header_row: bool
@@ -160,11 +183,11 @@ def parse_column_map(data: Any, vessel: Vessel) -> ColumnMap:
             raise ColumnMapError(f'missing {key!r}')
     for group in ('velocity', 'position'):
         if data.get(group) is not None:
-            _group(group, data[group], topics)
+            _group(group, data[group], topics, vessel)
     if 'wind' in vessel.environment:
         if data.get('wind') is None:
             raise ColumnMapError(f"missing 'wind': vessel {vessel.name!r} has a wind input")
-        _group('wind', data['wind'], topics)
+        _group('wind', data['wind'], topics, vessel)
     elif data.get('wind') is not None:
         raise ColumnMapError(f"maps 'wind', but vessel {vessel.name!r} declares no wind input")
     heading = data['heading']
@@ -177,17 +200,21 @@ def parse_column_map(data: Any, vessel: Vessel) -> ColumnMap:
         heading = {k: v for k, v in heading.items() if k != 'convention'}
     topics['attitude'] = {'frame': HEADING_FRAMES[convention],
                           'heading': _entry('heading', heading, 'angle')}
-    for key, kind, group in (('yaw_rate', 'rate', 'body_velocity'),
-                             ('roll_rate', 'rate', 'body_velocity'),
-                             ('roll', 'angle', 'attitude')):
+    modelled = {'any': True, 'roll': vessel.has_roll, 'spatial': vessel.is_spatial}
+    for key, (kind, group, needs) in ATTITUDE_KEYS.items():
         if data.get(key) is None:
+            if vessel.is_spatial or (key == 'roll' and vessel.has_roll):
+                raise ColumnMapError(f'missing {key!r}: vehicle {vessel.name!r} models it '
+                                     f'(states {list(vessel.states)})')
             continue
-        if not vessel.has_roll and key != 'yaw_rate':
-            raise ColumnMapError(f'maps {key!r}, but vessel {vessel.name!r} models no roll '
-                                 f'(states {list(vessel.states)}); remove it')
-        topics.setdefault(group, {'frame': 'frd'})[key] = _entry(key, data[key], kind)
-    if vessel.has_roll and data.get('roll') is None:
-        raise ColumnMapError(f"missing 'roll': vessel {vessel.name!r} models roll")
+        if not modelled[needs]:
+            raise ColumnMapError(f'maps {key!r}, but vessel {vessel.name!r} models no '
+                                 f'{"roll" if needs == "roll" else "pitch"} (states '
+                                 f'{list(vessel.states)}); remove it')
+        if group == 'attitude':  # angles are in the heading convention's frame
+            topics['attitude'][key] = _entry(key, data[key], kind)
+        else:
+            topics.setdefault(group, {'frame': 'frd'})[key] = _entry(key, data[key], kind)
     if data.get('speed_over_ground') is not None:
         topics['speed_over_ground'] = {
             'speed': _entry('speed_over_ground', data['speed_over_ground'], 'speed')}
@@ -200,8 +227,12 @@ def parse_column_map(data: Any, vessel: Vessel) -> ColumnMap:
 
 
 def _table_format(data: Mapping[str, Any]) -> TableFormat:
-    if data.get('format', FORMAT) != FORMAT:
-        raise ColumnMapError(f'format {data.get("format")!r}: the only reader is {FORMAT!r}')
+    fmt = data.get('format', FORMAT)
+    if fmt not in FORMATS:
+        raise ColumnMapError(f'format {fmt!r}: the readers are {", ".join(FORMATS)}')
+    if fmt != FORMAT and (text := [k for k in TEXT_KEYS if k in data]):
+        raise ColumnMapError(f'format {fmt}: {text} apply to delimited text only (a {fmt} '
+                             f'file names and types its own columns)')
     sep = data.get('sep', ',')
     if not isinstance(sep, str) or not (sep == 'whitespace' or len(sep) == 1):
         raise ColumnMapError(f"sep is {sep!r}; use 'whitespace' or one character like ','")
@@ -234,7 +265,7 @@ def _table_format(data: Mapping[str, Any]) -> TableFormat:
     run = data.get('run')
     if run is not None and not isinstance(run, str):
         raise ColumnMapError(f'run must name a column, got {run!r}')
-    return TableFormat(sep, skip, header_row, tuple(names) if names else None, encoding,
+    return TableFormat(fmt, sep, skip, header_row, tuple(names) if names else None, encoding,
                        time, float(rate) if rate is not None else None, run)
 
 
@@ -254,6 +285,12 @@ def _entry(label: str, spec: Any, kind: str | None, unit: str | None = None,
     sign = spec.get('sign', 1)
     if sign not in (1, -1) or isinstance(sign, bool):
         raise ColumnMapError(f'{label}.sign must be 1 or -1, got {sign!r}')
+    factor = spec.get('scale', 1.0)
+    if isinstance(factor, bool) or not isinstance(factor, (int, float)) or not (
+            math.isfinite(factor) and factor > 0):
+        raise ColumnMapError(f'{label}.scale must be a positive number (the sign is sign), '
+                             f'got {factor!r}')
+    sign = sign * float(factor)
     unit = spec.get('unit', unit)
     entry = {'topic': TABLE, 'field': column}
     delay = spec.get('delay_s', delay)
@@ -272,7 +309,7 @@ def _entry(label: str, spec: Any, kind: str | None, unit: str | None = None,
     return {**entry, 'scale': sign * units[unit]}
 
 
-def _group(group: str, spec: Any, topics: dict[str, Any]) -> None:
+def _group(group: str, spec: Any, topics: dict[str, Any], vessel: Vessel) -> None:
     options = GROUP_FRAMES[group]
     if not isinstance(spec, Mapping):
         raise ColumnMapError(f'{group} must be a mapping with a frame and its components')
@@ -280,6 +317,12 @@ def _group(group: str, spec: Any, topics: dict[str, Any]) -> None:
     if frame not in options:
         raise ColumnMapError(f'{group}.frame is {frame!r}; use one of {list(options)}')
     target, target_frame, components = options[frame]
+    if vessel.is_spatial:
+        if (group, frame) not in SPATIAL_COMPONENTS:
+            raise ColumnMapError(f'{group}.frame {frame} gives no third component; a 6-DOF '
+                                 f'vehicle takes one of '
+                                 f'{[f for g, f in SPATIAL_COMPONENTS if g == group]}')
+        components = components + (SPATIAL_COMPONENTS[group, frame],)
     allowed = {'frame', 'unit', 'delay_s'} | {c for c, _, _ in components}
     if unknown := sorted(set(spec) - allowed):
         raise ColumnMapError(f'{group} (frame {frame}): unknown keys {unknown}; use '

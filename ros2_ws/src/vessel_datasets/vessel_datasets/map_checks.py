@@ -21,6 +21,21 @@ conversion):
 * spikes (``spikes``): samples beyond the vessel's declared ranges and single-sample
   jumps, dropped before resampling and counted here.
 
+A 6-DOF vehicle (``spatial_checks``) is checked in space: its body velocity turned by
+the whole attitude (``integrator.body_to_ned``) against d(x, y, z)/dt, all three
+components and the vertical one alone (a flipped down axis hides among larger horizontal
+motions), the course over ground of the two (horizontal, as for vessels: a frame or
+axis slip turns it by tens of degrees, while a scale error of the horizontal velocity
+within the velocity check's tolerance would tilt a 3-D direction by degrees), the lags
+of position and yaw rate, and each body rate against the rate of its Euler angle
+(``integrator.attitude_rates``: roll, pitch and heading). Its heading need not follow
+its track (a multirotor flies sideways), so the heading-rate and drift checks, which
+hold for hulls, are skipped with that reason. Its rate checks are judged over all runs,
+as the timing is: a flight that holds its heading turns a few degrees a second, where a
+MEMS gyro's bias and the estimator's heading corrections weigh as much as the motion
+(the nanodrone's square flights: yaw-rate correlation 0.75-0.86 alone, 0.93 pooled),
+while a wrong column, unit or sign is wrong in every flight.
+
 Both sides of every comparison are averaged over the same time, at least ``SMOOTH_S``
 and longer where a quantity is coarse (``resolution``): quantisation then stays below a
 twentieth of the change compared, while a wrong unit, sign or frame does not average
@@ -34,6 +49,7 @@ pool into one (:func:`aggregate`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+import dataclasses
 from dataclasses import asdict, dataclass, field
 import math
 from typing import Any, TextIO
@@ -42,7 +58,7 @@ import numpy as np
 import pandas as pd
 
 from vessel_description.vessel import plain
-from vessel_physics.integrator import kinematics
+from vessel_physics.integrator import attitude_rates, body_to_ned, kinematics
 
 from . import timing
 from .topic_map import TopicMap
@@ -65,7 +81,7 @@ MAX_DRIFT_DEG = 15.0      # typical (median) drift angle while running straight
 # tracking glitch do not fail a right map; a wrong one is off almost everywhere.
 ANGLE_BINS = np.concatenate([np.arange(0.0, 10.0, 0.05), np.arange(10.0, 181.0, 1.0)])
 TURN_LENGTHS = 5.0        # heading and course turns are compared over this many lengths
-POOLED = ('timing', 'turn')  # kinds of check judged over all runs only
+POOLED = ('timing', 'turn', 'spatial_rate')  # kinds of check judged over all runs only
 STRAIGHT = 0.1            # running straight: |r| L / U below this (turning radius > 10 L)
 MIN_STRAIGHT_S = 5.0      # fewer straight-running seconds leave the drift unjudged
 MIN_SPEED = 0.05          # m/s; slower runs are too still to test the velocity map
@@ -94,22 +110,26 @@ LABELS = {
     'columns': {'velocity': 'columns.velocity', 'position': 'columns.position',
                 'heading': 'columns.heading', 'yaw_rate': 'columns.yaw_rate',
                 'roll_rate': 'columns.roll_rate', 'roll': 'columns.roll',
+                'pitch_rate': 'columns.pitch_rate', 'pitch': 'columns.pitch',
                 'time': 'columns.time', 'actuators': 'columns.actuators',
                 'speed_over_ground': 'columns.speed_over_ground'},
     'topics': {'velocity': 'topics.body_velocity', 'position': 'topics.position',
                'heading': 'topics.attitude', 'yaw_rate': 'topics.body_velocity.yaw_rate',
                'roll_rate': 'topics.body_velocity.roll_rate', 'roll': 'topics.attitude',
+               'pitch_rate': 'topics.body_velocity.pitch_rate', 'pitch': 'topics.attitude',
                'time': 'stamps', 'actuators': 'topics.actuators',
                'speed_over_ground': 'topics.speed_over_ground'},
 }
 LABELS['logs'] = {k: v.replace('topics.', 'logs.') for k, v in LABELS['topics'].items()}
 # Dataset column -> map quantity, for spike messages.
-QUANTITY_OF = {'u': 'velocity', 'v': 'velocity', 'p': 'roll_rate', 'r': 'yaw_rate',
-               'phi': 'roll'}
+QUANTITY_OF = {'u': 'velocity', 'v': 'velocity', 'w': 'velocity', 'p': 'roll_rate',
+               'q': 'pitch_rate', 'r': 'yaw_rate', 'phi': 'roll', 'theta': 'pitch'}
 # Quantities whose coarseness sets the averaging time of each comparison.
 SCALES_OF = {'velocity': ('velocity', 'position'), 'heading': ('velocity', 'position',
                                                                 'heading'),
-             'yaw_rate': ('yaw_rate', 'heading'), 'roll_rate': ('roll_rate', 'roll')}
+             'yaw_rate': ('yaw_rate', 'heading'), 'roll_rate': ('roll_rate', 'roll'),
+             'pitch_rate': ('pitch_rate', 'pitch')}
+HULL_ONLY = 'skipped: a 6-DOF vehicle need not point where it flies'
 
 
 @dataclass(frozen=True)
@@ -163,9 +183,9 @@ def context_for(topic_map: TopicMap, scales: Mapping[str, float] | None = None,
     if not channels & {'surge', 'vel_north'}:
         derived += ('track',)
     section = topic_map.section
-    quantity = {'surge': 'velocity', 'sway': 'velocity', 'vel_north': 'velocity',
-                'vel_east': 'velocity', 'yaw_rate': 'yaw_rate', 'heading': 'heading',
-                'qx': 'heading'}
+    quantity = {'surge': 'velocity', 'sway': 'velocity', 'heave': 'velocity',
+                'vel_north': 'velocity', 'vel_east': 'velocity', 'vel_down': 'velocity',
+                'yaw_rate': 'yaw_rate', 'heading': 'heading', 'qx': 'heading'}
     entries: dict[str, list[tuple[str, float]]] = {}
     for e in topic_map.entries:
         q = 'position' if e.group == 'position' else quantity.get(
@@ -230,15 +250,13 @@ def consistency_checks(table: pd.DataFrame, topic_map: TopicMap, ctx: Context
                        ) -> list[Check]:
     """Compare one run's velocities, heading and rates with the derivatives of its pose."""
     vessel = topic_map.vessel
+    if vessel.is_spatial:
+        return spatial_checks(table, topic_map, ctx)
     labels = ctx.labels
     t = table['t'].to_numpy(float)
     col = {c: table[c].to_numpy(float) for c in table.columns}
     phi = col['phi'] if vessel.has_roll else np.zeros_like(t)
-
-    def width(what: str) -> int:
-        seconds = max([SMOOTH_S] + [ctx.scales.get(q, 0.0) for q in SCALES_OF[what]])
-        return max(1, int(round(seconds * vessel.rate_hz))) | 1
-
+    width = _widths(ctx, vessel.rate_hz)
     w_vel, w_head = width('velocity'), width('heading')
     if len(t) < max(w_head, 3):
         return [Check('velocity vs d(position)/dt', None, '', True, None,
@@ -299,6 +317,72 @@ def consistency_checks(table: pd.DataFrame, topic_map: TopicMap, ctx: Context
         track_speed = np.hypot(_smooth(np.gradient(col['x'], t), w_vel),
                                _smooth(np.gradient(col['y'], t), w_vel))
         checks.append(_speed_over_ground(_sums(sog, track_speed), labels))
+    return checks
+
+
+def _widths(ctx: Context, rate_hz: float):
+    """Return width(what): the odd number of samples a comparison of ``what`` averages."""
+    def width(what: str) -> int:
+        seconds = max([SMOOTH_S] + [ctx.scales.get(q, 0.0) for q in SCALES_OF[what]])
+        return max(1, int(round(seconds * rate_hz))) | 1
+    return width
+
+
+def spatial_checks(table: pd.DataFrame, topic_map: TopicMap, ctx: Context) -> list[Check]:
+    """``consistency_checks`` of a 6-DOF vehicle (module docstring): checks in space."""
+    vessel, labels = topic_map.vessel, ctx.labels
+    t = table['t'].to_numpy(float)
+    col = {c: table[c].to_numpy(float) for c in table.columns}
+    width = _widths(ctx, vessel.rate_hz)
+    w_vel = width('velocity')
+    if len(t) < max(w_vel, 3):
+        return [Check('velocity vs d(position)/dt', None, '', True, None,
+                      f'skipped: {len(t)} samples are too few')]
+    angles = (col['phi'], col['theta'], col['psi'])
+    velocity = np.stack([_smooth(a, w_vel) for a in body_to_ned(col['u'], col['v'], col['w'],
+                                                                  *angles)])
+    track = np.stack([_smooth(np.gradient(col[c], t), w_vel) for c in ('x', 'y', 'z')])
+    speed = np.linalg.norm(track, axis=0)
+    moving = speed > MOVING * np.percentile(speed, 95)
+    checks = [_velocity(_sums(velocity[:, moving].ravel(), track[:, moving].ravel()), labels),
+              _vertical(_sums(velocity[2], track[2]), labels)]
+    euler = attitude_rates(col['p'], col['q'], col['r'], *angles[:2])
+    w_rate = width('yaw_rate')
+    lags: dict[str, Any] = {}
+    coarse = [q for q, w in (('position', w_vel), ('yaw_rate', w_rate))
+              if w / vessel.rate_hz > timing.MAX_TIMED_SCALE_S]
+    if coarse:
+        lags['coarse'] = coarse
+    ks = timing.shifts(vessel.rate_hz)
+    speed_v = np.linalg.norm(velocity, axis=0)
+    if _rms(speed_v) >= MIN_SPEED and 'position' not in coarse:
+        lags['position'] = timing.cost_curve(speed_v, speed, ks)
+    heading_rate = _smooth(np.gradient(col['psi'], t), w_rate)
+    if _rms(heading_rate) >= MIN_RATE and 'yaw_rate' not in coarse:
+        lags['yaw_rate'] = timing.cost_curve(heading_rate, _smooth(euler[2], w_rate), ks)
+    lags['tolerance_s'] = max(1.0 / vessel.rate_hz, ctx.interval_s)
+    checks.append(_timing(lags, ctx, vessel.rate_hz))
+    ground = np.hypot(track[0], track[1])
+    over_ground = ground > MOVING * np.percentile(ground, 95)
+    course = np.degrees(np.angle(np.exp(1j * (np.arctan2(velocity[1], velocity[0])
+                                              - np.arctan2(track[1], track[0])))))
+    checks.append(_course(_angles('course', course[over_ground], ground[over_ground]),
+                          labels))
+    checks.append(Check('heading rate vs course rate', None, '', True, None, HULL_ONLY))
+    checks.append(Check('drift angle atan2(v, |u|) running straight', None, '', True, None,
+                        HULL_ONLY))
+    for rate, angle, column, euler_rate in (('yaw_rate', 'heading', 'psi', euler[2]),
+                                            ('roll_rate', 'roll', 'phi', euler[0]),
+                                            ('pitch_rate', 'pitch', 'theta', euler[1])):
+        w = width(rate)
+        stats = {**_sums(_smooth(euler_rate, w), _smooth(np.gradient(col[column], t), w)),
+                 'kind': 'spatial_rate'}
+        check = _rate(rate, angle, stats, labels)
+        if not check.ok:
+            figures = check.message.split(' -> ')[0]
+            check = dataclasses.replace(check, ok=True, suspect=None,
+                                        message=f'{figures} -> judged over all runs')
+        checks.append(check)
     return checks
 
 
@@ -441,6 +525,21 @@ def _velocity(stats: dict, labels: Mapping[str, str]) -> Check:
 
     return _judge_slope('velocity vs d(position)/dt', stats, MIN_SPEED,
                         f'the vessel moves slower than {MIN_SPEED:g} m/s', explain)
+
+
+def _vertical(stats: dict, labels: Mapping[str, str]) -> Check:
+    def explain(slope, corr):
+        suspect, why = _explain(slope, corr, 'velocity', 'speed', 'position', 'length',
+                                labels)
+        if why is None:
+            suspect = f'{labels["velocity"]}, {labels["position"]}'
+            why = (f'the vertical velocity and the height disagree: down or z sign, frame '
+                   f'(ned/enu) or column wrong ({suspect})')
+        return suspect, why
+
+    return _judge_slope('vertical velocity vs d(z)/dt', {**stats, 'vertical': True},
+                        MIN_SPEED, f'the vehicle climbs and sinks slower than '
+                        f'{MIN_SPEED:g} m/s', explain)
 
 
 def _speed_over_ground(stats: dict, labels: Mapping[str, str]) -> Check:
@@ -673,8 +772,12 @@ def _judge(name: str, stats: dict, refuse: bool, ctx: Context) -> Check:
         return _timing(stats, ctx, stats['rate_hz'], judge=True)
     if kind == 'turn':
         return _judge_turn(stats, labels, judge=True)
+    if kind == 'spatial_rate':
+        return _rate(stats['rate'], stats['angle'], stats, labels)
     if name.startswith('velocity'):
         return _velocity(stats, labels)
+    if name.startswith('vertical'):
+        return _vertical(stats, labels)
     if name.startswith('speed over ground'):
         return _speed_over_ground(stats, labels)
     return _rate(stats['rate'], stats['angle'], stats, labels)

@@ -40,6 +40,7 @@ import numpy as np
 import pandas as pd
 
 from vessel_description.resources import data_dir, read_yaml
+from vessel_physics.integrator import ned_to_body_3d
 
 from . import format as fmt
 from . import map_checks, resolution, spikes, track
@@ -288,14 +289,22 @@ def _drop_spikes(series: dict[str, _Series], topic_map: TopicMap, report: dict
         if model is not None:
             mask = drop([channel], *model)
             series[channel] = _Series(s.t_ns[~mask], s.values[~mask], s.source)
-    north, east, psi = (series.get(c) for c in ('vel_north', 'vel_east', 'psi'))
-    if north is not None and psi is not None and len(north.t_ns) == len(east.t_ns) \
-            and len(psi.t_ns) > 1:
-        # Earth-frame velocities: their spikes are the body velocities' (u, v).
-        u, v = earth_to_body(north.values, east.values, np.interp(north.t_ns, psi.t_ns,
-                                                                  psi.values))
-        mask = drop(['vel_north'], 'u', u) | drop(['vel_north'], 'v', v)
-        for c in ('vel_north', 'vel_east'):
+    spatial = topic_map.vessel.is_spatial
+    earth = ('vel_north', 'vel_east', 'vel_down') if spatial else ('vel_north', 'vel_east')
+    attitude = ('phi', 'theta', 'psi') if spatial else ('psi',)
+    if all(c in series for c in earth + attitude) and len(
+            {len(series[c].t_ns) for c in earth}) == 1 and min(
+            len(series[c].t_ns) for c in attitude) > 1:
+        # Earth-frame velocities: their spikes are the body velocities' (u, v[, w]).
+        t_ns = series['vel_north'].t_ns
+        angles = [np.interp(t_ns, series[c].t_ns, series[c].values) for c in attitude]
+        values = [series[c].values for c in earth]
+        body = dict(zip('uvw', ned_to_body_3d(*values, *angles) if spatial else
+                        earth_to_body(*values, angles[0]), strict=False))
+        mask = np.zeros(len(t_ns), bool)
+        for state, velocity in body.items():
+            mask |= drop(['vel_north'], state, velocity)
+        for c in earth:
             series[c] = _Series(series[c].t_ns[~mask], series[c].values[~mask],
                                 series[c].source)
     return found
@@ -306,7 +315,8 @@ COARSE = {'position': (('pos_x', 'pos_y'), 'm'), 'latlon': (('lat', 'lon'), 'deg
           'heading': (('psi',), 'rad'), 'velocity': (('surge', 'sway'), 'm/s'),
           'earth_velocity': (('vel_north', 'vel_east'), 'm/s'),
           'yaw_rate': (('yaw_rate',), 'rad/s'), 'roll': (('phi',), 'rad'),
-          'roll_rate': (('roll_rate',), 'rad/s')}
+          'roll_rate': (('roll_rate',), 'rad/s'), 'pitch': (('theta',), 'rad'),
+          'pitch_rate': (('pitch_rate',), 'rad/s')}
 
 
 def _scales(series: Mapping[str, _Series], topic_map: TopicMap, report: dict
@@ -314,7 +324,8 @@ def _scales(series: Mapping[str, _Series], topic_map: TopicMap, report: dict
     """Note each coarse quantity once; return the time scale (s) per quantity."""
     labels = map_checks.LABELS[topic_map.section]
     fields = {leaf.channel: leaf.path for leaf in topic_map.leaves()}
-    for angle, sources in (('psi', ('heading', 'qx')), ('phi', ('roll', 'qx'))):
+    for angle, sources in (('psi', ('heading', 'qx')), ('phi', ('roll', 'qx')),
+                           ('theta', ('pitch', 'qx'))):
         if found := [fields[c] for c in sources if c in fields]:
             fields[angle] = found[0]
     out = {}

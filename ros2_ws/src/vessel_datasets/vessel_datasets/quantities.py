@@ -12,7 +12,9 @@ Two steps around resampling:
   ``vel_north``/``vel_east`` rotated into it by the heading), roll only where the vessel
   models it, position north/east of the run's start (latitude/longitude projected with
   pyproj), its actuators, and, where it has a wind input, the wind's speed and
-  direction relative to the bow.
+  direction relative to the bow. A 6-DOF vehicle's columns (``to_spatial_columns``)
+  take all three components: heave, pitch rate and pitch, down and the height, with
+  earth-frame velocities turned into the body by the whole attitude.
 
 Every ENU/FLU <-> NED/FRD change goes through ``vessel_physics.frames``, the one place
 that defines it; this module only chooses which conversion a topic map's frame tag
@@ -29,18 +31,19 @@ import numpy as np
 from pyproj import Transformer
 
 from vessel_physics import frames
+from vessel_physics.integrator import ned_to_body_3d
 
 from .extract import TopicSamples
 from .topic_map import ACTUATOR_PREFIX, TopicMap
 
 # Group of each channel ``derive`` (or the converter: rates from angles, velocities from
 # the track) creates, for its resampling method.
-DERIVED_GROUP = {'phi': 'attitude', 'psi': 'attitude', 'wind_x': 'wind', 'wind_y': 'wind',
-                 'yaw_rate': 'body_velocity', 'roll_rate': 'body_velocity',
+DERIVED_GROUP = {'phi': 'attitude', 'psi': 'attitude', 'theta': 'attitude', 'wind_x': 'wind',
+                 'wind_y': 'wind', 'yaw_rate': 'body_velocity', 'roll_rate': 'body_velocity',
                  'vel_north': 'earth_velocity', 'vel_east': 'earth_velocity'}
-# Body channel -> (dataset state, sign of the FLU -> FRD change: frames.twist_flu_to_frd).
-BODY_STATES = {'surge': ('u', 1.0), 'sway': ('v', -1.0), 'roll_rate': ('p', 1.0),
-               'yaw_rate': ('r', -1.0)}
+# Body channel -> (dataset state, sign of the FLU -> FRD change: frames.body_flu_to_frd).
+BODY_STATES = {'surge': ('u', 1.0), 'sway': ('v', -1.0), 'heave': ('w', -1.0),
+               'roll_rate': ('p', 1.0), 'pitch_rate': ('q', -1.0), 'yaw_rate': ('r', -1.0)}
 
 
 def derive(samples: TopicSamples, topic_map: TopicMap) -> TopicSamples:
@@ -51,10 +54,15 @@ def derive(samples: TopicSamples, topic_map: TopicMap) -> TopicSamples:
         q = np.column_stack([cols.pop(c) for c in ('qx', 'qy', 'qz', 'qw')])
         q = q / np.linalg.norm(q, axis=1, keepdims=True)  # sensors round their quaternions
         if attitude == 'enu_flu':
-            phi, _, psi = frames.orientation_enu_to_ned(*q.T)
+            phi, theta, psi = frames.orientation_enu_to_ned(*q.T)
         else:
-            phi, _, psi = frames.euler_from_quaternion(*q.T)
+            phi, theta, psi = frames.euler_from_quaternion(*q.T)
         cols['phi'], cols['psi'] = phi, psi
+        if topic_map.vessel.is_spatial:
+            cols['theta'] = theta
+    if 'pitch' in cols:   # FLU pitch turns about the y axis FRD reverses
+        pitch = cols.pop('pitch')
+        cols['theta'] = -pitch if attitude == 'enu_flu' else pitch
     if 'heading' in cols:
         heading = cols.pop('heading')
         cols['psi'] = frames.heading_enu_to_ned(heading) if attitude == 'enu_flu' else heading
@@ -101,7 +109,7 @@ def channel_methods(topic_map: TopicMap) -> dict[str, str]:
 
 
 # Channels ``derive`` makes -> the leaf channels whose entry's delay they take.
-DELAY_FROM = {'psi': ('heading', 'qx'), 'phi': ('roll', 'qx'),
+DELAY_FROM = {'psi': ('heading', 'qx'), 'phi': ('roll', 'qx'), 'theta': ('pitch', 'qx'),
               'wind_x': ('wind_x', 'wind_speed'), 'wind_y': ('wind_y', 'wind_speed')}
 
 
@@ -130,6 +138,8 @@ def model_column(channel: str, values: np.ndarray, topic_map: TopicMap
         return (state, sign * values) if state in vessel.states else None
     if channel == 'phi' and vessel.has_roll:
         return 'phi', values
+    if channel == 'theta' and vessel.is_spatial:
+        return 'theta', values
     if channel.startswith(ACTUATOR_PREFIX):
         return channel[len(ACTUATOR_PREFIX):], values
     return None
@@ -144,6 +154,8 @@ def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
     the recording's own frame origin (the predictor's published track).
     """
     vessel = topic_map.vessel
+    if vessel.is_spatial:
+        return to_spatial_columns(ch, topic_map, relative)
     out: dict[str, np.ndarray] = {}
     psi = np.asarray(ch['psi'], float)
     phi = np.asarray(ch['phi'], float) if vessel.has_roll else np.zeros_like(psi)
@@ -173,8 +185,7 @@ def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
         north, east = north - north[0], east - east[0]
     out['x'], out['y'] = north, east
 
-    for name in vessel.actuator_names:
-        out[name] = np.asarray(ch[ACTUATOR_PREFIX + name], float)
+    out.update(actuator_columns(ch, topic_map))
 
     if 'wind' in vessel.environment:
         wx, wy = np.asarray(ch['wind_x'], float), np.asarray(ch['wind_y'], float)
@@ -185,6 +196,43 @@ def to_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
         out['wind_dir_cos'], out['wind_dir_sin'] = (np.asarray(cos, float),
                                                     np.asarray(sin, float))
     return {c: out[c] for c in vessel.dataset_columns[1:]}
+
+
+def to_spatial_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap,
+                       relative: bool = True) -> dict[str, np.ndarray]:
+    """``to_columns`` of a 6-DOF vehicle: body velocities and rates, roll, pitch, pose."""
+    vessel = topic_map.vessel
+    phi, theta = np.asarray(ch['phi'], float), np.asarray(ch['theta'], float)
+    psi = np.asarray(ch['psi'], float)
+    flu = topic_map.frames['body_velocity'] == 'flu'
+    rates = (ch['roll_rate'], ch['pitch_rate'], ch['yaw_rate'])
+    p, q, r = frames.body_flu_to_frd(*rates) if flu else rates
+    if 'surge' in ch:
+        velocity = (ch['surge'], ch['sway'], ch['heave'])
+        u, v, w = frames.body_flu_to_frd(*velocity) if flu else velocity
+    else:
+        u, v, w = ned_to_body_3d(ch['vel_north'], ch['vel_east'], ch['vel_down'], phi, theta,
+                                 psi)
+    out = dict(zip(('u', 'v', 'w', 'p', 'q', 'r'),
+                   (np.asarray(a, float) for a in (u, v, w, p, q, r)), strict=True))
+    out['phi'], out['theta'] = phi, theta
+    out['psi'] = psi - 2.0 * math.pi * np.round(psi[0] / (2.0 * math.pi))
+    point = (ch['pos_x'], ch['pos_y'], ch['pos_z'])
+    north, east, down = (np.asarray(a, float) for a in (
+        frames.position_enu_to_ned(*point) if topic_map.frames['position'] == 'enu'
+        else point))
+    if relative:
+        north, east, down = north - north[0], east - east[0], down - down[0]
+    out['x'], out['y'], out['z'] = north, east, down
+    out.update(actuator_columns(ch, topic_map))
+    return {c: out[c] for c in vessel.dataset_columns[1:]}
+
+
+def actuator_columns(ch: Mapping[str, np.ndarray], topic_map: TopicMap
+                     ) -> dict[str, np.ndarray]:
+    """Return the vessel's actuator columns from their channels."""
+    return {name: np.asarray(ch[ACTUATOR_PREFIX + name], float)
+            for name in topic_map.vessel.actuator_names}
 
 
 def earth_to_body(north, east, psi, phi=0.0) -> tuple[np.ndarray, np.ndarray]:

@@ -1,7 +1,7 @@
 """
-Convert tabular logs (CSV, whitespace-separated .dat, ...) into a training dataset.
+Convert tabular logs (CSV, whitespace-separated .dat, ..., Parquet) into a training dataset.
 
-Reads text tables, several, or folders of them (one recording per file; a run column
+Reads tables, several, or folders of them (one recording per file; a run column
 splits a file into runs). The vessel file (--vessel) names the vessel's states,
 actuators and sample rate; its recordings.columns map (--column-map overrides it) says
 how to read the files and which column gives each quantity in which unit, frame, sign
@@ -40,7 +40,8 @@ def parse_args(argv):
     """Parse the command line; gap, run-length and split defaults are config/convert.yaml's."""
     parser, _ = converter_parser(
         __doc__ + '\n' + EXAMPLES, 'FILE_OR_DIR',
-        f'table file, or a folder of them ({" ".join(SUFFIXES)})')
+        'table file, or a folder of them (' + '; '.join(
+            f'{fmt}: {" ".join(suffixes)}' for fmt, suffixes in SUFFIXES.items()) + ')')
     parser.add_argument('--column-map', metavar='YAML',
                         help="how to read the tables, replacing the vessel file's "
                              'recordings.columns')

@@ -10,7 +10,10 @@ Which entries a group needs follows the vessel: a roll rate and roll angle only 
 roll is modelled, one entry per actuator it declares, a wind group only where it
 declares a wind input. Body velocities may be left out when an ``earth_velocity`` group
 gives them, or when the vessel's position track must give them (GPS-only logs); a yaw
-rate left out is differentiated from the heading.
+rate left out is differentiated from the heading. A 6-DOF vehicle (``Vessel.is_spatial``)
+takes the third component of each: heave, pitch rate and pitch, down and the height; its
+body rates come from a gyro (all three are required) and its velocities are mapped (body
+or earth frame), not taken from the track.
 
 Every entry may carry ``delay_s`` (s, also settable for a whole group): its samples were
 measured that long before their stamp, and the converter moves them back. An entry may
@@ -63,15 +66,19 @@ COMPOSITES: dict[str, tuple[tuple[str, str], ...]] = {
 }
 # Scalar entries whose channel is not their own name.
 SCALAR_CHANNELS = {('position', 'x'): 'pos_x', ('position', 'y'): 'pos_y',
+                   ('position', 'z'): 'pos_z',
                    ('earth_velocity', 'north'): 'vel_north',
                    ('earth_velocity', 'east'): 'vel_east',
+                   ('earth_velocity', 'down'): 'vel_down',
                    ('speed_over_ground', 'speed'): 'sog'}
+# Components a composite entry gives a 6-DOF vehicle besides those of ``COMPOSITES``.
+SPATIAL_COMPOSITES: dict[str, tuple[tuple[str, str], ...]] = {'point': (('z', 'pos_z'),)}
 ACTUATOR_PREFIX = 'actuator.'
 # Composite entries whose components must not be scaled (a unit quaternion, degrees).
 UNSCALED = ('quaternion', 'latlon')
 # Entries whose samples must come from one message (they are combined per message).
 SAME_TOPIC = {'attitude': ('quaternion',), 'wind': ('speed', 'from_angle'),
-              'position': ('point', 'latlon', 'x', 'y', 'lat', 'lon')}
+              'position': ('point', 'latlon', 'x', 'y', 'z', 'lat', 'lon')}
 ENTRY_KEYS = ('topic', 'field', 'scale', 'offset', 'type', 'delay_s')
 GROUP_KEYS = ('frame', 'resample', 'delay_s')
 # Section of a vessel file a map comes from -> whether its topics are ROS names.
@@ -87,8 +94,21 @@ def channel_of(group: str, name: str) -> str:
     return SCALAR_CHANNELS.get((group, name), name)
 
 
+# Entry sets of the groups that differ for a 6-DOF vehicle: three components each, and
+# the body rates always.
+_RATES = ('roll_rate', 'pitch_rate', 'yaw_rate')
+SPATIAL_GROUPS: dict[str, tuple[tuple[str, ...], ...]] = {
+    'body_velocity': (('surge', 'sway', 'heave') + _RATES, _RATES),
+    'earth_velocity': (('north', 'east', 'down'),),
+    'attitude': (('quaternion',), ('heading', 'roll', 'pitch')),
+    'position': (('point',), ('x', 'y', 'z')),
+}
+
+
 def _alternatives(group: str, vessel: Vessel) -> tuple[tuple[str, ...], ...]:
     """Entry sets that give ``group`` for this vessel (roll only where it is modelled)."""
+    if vessel.is_spatial and group in SPATIAL_GROUPS:
+        return SPATIAL_GROUPS[group]
     roll = ('roll_rate',) if vessel.has_roll else ()
     if group == 'body_velocity':  # surge and sway together, or neither; rates optional
         return tuple(v + rr + yr for v in (('surge', 'sway'), ()) for rr in (roll, ())
@@ -180,9 +200,12 @@ class TopicMap:
     def leaves(self) -> list[Leaf]:
         """Every scalar to read, composite entries expanded into their components."""
         out = []
+        spatial = self.vessel.is_spatial
         for e in self.entries:
             if e.name in COMPOSITES and e.group != 'actuators':
-                for component, channel in COMPOSITES[e.name]:
+                components = COMPOSITES[e.name] + (SPATIAL_COMPOSITES.get(e.name, ())
+                                                   if spatial else ())
+                for component, channel in components:
                     path = f'{e.field}.{component}' if e.field else component
                     out.append(Leaf(channel, e.group, e.topic, path, e.scale, e.offset,
                                     e.label, e.delay_s))
@@ -276,6 +299,14 @@ def parse_topic_map(data: Any, vessel: Vessel, section: str = 'topics') -> Topic
     if 'earth_velocity' in resample and any(e.name == 'surge' for e in entries):
         raise TopicMapError('maps both body_velocity surge/sway and earth_velocity; give '
                             'one of them')
+    if vessel.is_spatial and 'body_velocity' not in resample:
+        raise TopicMapError(f'vehicle {vessel.name!r} is a 6-DOF vehicle: map its body rates '
+                            f'(body_velocity roll_rate, pitch_rate, yaw_rate: a gyro)')
+    if vessel.is_spatial and 'earth_velocity' not in resample and not any(
+            e.name == 'surge' for e in entries):
+        raise TopicMapError(f'vehicle {vessel.name!r} is a 6-DOF vehicle: map its velocities '
+                            f'(body_velocity surge, sway, heave or earth_velocity north, '
+                            f'east, down)')
     stamps = _parse_overrides(data.get('stamps', {}), 'stamps', _time_source)
     gaps = _parse_overrides(data.get('max_gap_s', {}), 'max_gap_s', _positive)
     return TopicMap(vessel=vessel, entries=tuple(entries), frames=frames, resample=resample,

@@ -1,5 +1,5 @@
 """
-The text-table reader: CSV, whitespace-separated .dat, ... -> timed channels.
+The table reader: CSV, whitespace-separated .dat, ..., Parquet -> timed channels.
 
 A column map (``column_map``) says how to read the files and which column gives each
 quantity. Each file is one recording; a run column splits it into runs by value. Rows
@@ -26,7 +26,7 @@ from ..column_map import TABLE, ColumnMap
 from ..sources import ConversionError, Part, Recording, find_files, samples
 from ..topic_map import TopicMap
 
-SUFFIXES = ('.csv', '.dat', '.txt', '.tsv', '.log')
+SUFFIXES = {'delimited': ('.csv', '.dat', '.txt', '.tsv', '.log'), 'parquet': ('.parquet',)}
 
 
 class TableRecordings:
@@ -41,7 +41,8 @@ class TableRecordings:
 
     def find(self, paths: Iterable[str | os.PathLike]) -> list[Recording]:
         """Files given, and the table files in folders given (``pattern`` or suffixes)."""
-        return find_files(paths, SUFFIXES, 'table files', self.pattern)
+        fmt = self.column_map.table.format
+        return find_files(paths, SUFFIXES[fmt], f'{fmt} table files', self.pattern)
 
     def config(self) -> dict[str, Any]:
         """Return the file pattern (for the manifest; the map is recorded anyway)."""
@@ -85,6 +86,8 @@ def read_table(path: str | os.PathLike, cmap: ColumnMap) -> pd.DataFrame:
     """Read one file as the column map says; raise ConversionError (one line) when it cannot."""
     path = Path(path)
     fmt = cmap.table
+    if fmt.format == 'parquet':
+        return _checked(path, _read_parquet(path), cmap)
     sep = r'\s+' if fmt.sep == 'whitespace' else fmt.sep
     try:
         table = pd.read_csv(path, sep=sep, skiprows=fmt.skip_lines,
@@ -106,6 +109,20 @@ def read_table(path: str | os.PathLike, cmap: ColumnMap) -> pd.DataFrame:
         table.columns = [str(c).strip() for c in table.columns]
     else:
         table.columns = [f'col{i + 1}' for i in range(table.shape[1])]
+    return _checked(path, table, cmap)
+
+
+def _read_parquet(path: Path) -> pd.DataFrame:
+    """Read a Parquet file's table (its own column names and types)."""
+    try:
+        return pd.read_parquet(path)
+    except (OSError, ValueError) as exc:   # pyarrow's ArrowInvalid is a ValueError
+        raise ConversionError(f'{path}: cannot read as a Parquet table '
+                              f'({str(exc).splitlines()[0]})') from None
+
+
+def _checked(path: Path, table: pd.DataFrame, cmap: ColumnMap) -> pd.DataFrame:
+    """Return the table, refused in one line when it lacks a column the map names."""
     missing = [c for c in cmap.columns if c not in table.columns]
     if missing:
         raise ConversionError(f'{path}: {cmap.label_of(missing[0])} names column '
