@@ -115,3 +115,20 @@ def test_a_physics_file_of_the_vessels_own_travels_with_the_dataset(tmp_path):
     write_dataset(tmp_path / 'ds2', runs, vessel=load_vessel('kvlcc2_hsva'),
                   provenance={'tool': 'test'})
     assert read_dataset(tmp_path / 'ds2').vessel.physics == 'kvlcc2_hsva_mmg.yaml'
+
+
+def test_a_physics_entry_that_is_no_physics_file_does_not_stop_the_writing(tmp_path):
+    """A vessel naming its own file as physics (a name clash) writes; its users refuse it."""
+    import yaml
+
+    from vessel_description.vessel import vessels_dir
+
+    data = yaml.safe_load((vessels_dir() / 'kvlcc2_hsva.yaml').read_text())
+    data.update(name='clash', physics='clash.yaml')
+    (tmp_path / 'clash.yaml').write_text(yaml.safe_dump(data))
+    vessel = load_vessel(tmp_path / 'clash.yaml')
+    runs = {f'run_{i}': pd.DataFrame(
+        {**{c: np.zeros(10) for c in vessel.dataset_columns}, 't': np.arange(10) / 10.0})
+        for i in range(3)}
+    write_dataset(tmp_path / 'ds', runs, vessel=vessel, provenance={'tool': 'test'})
+    assert read_dataset(tmp_path / 'ds').vessel.physics == 'clash.yaml'

@@ -37,7 +37,10 @@ def carry(vessel: Vessel, out: Path) -> Vessel:
     if path.is_relative_to(config_dir().resolve()):
         return vessel
     name = f'{PREFIX}{path.stem}.yaml'
-    document = physics_to_dict(load_physics(path), inline=True)
+    try:
+        document = physics_to_dict(load_physics(path), inline=True)
+    except ConfigError:
+        return vessel   # not a physics file (e.g. the vessel file itself): refused where used
     document['description'] = f'{path.name} as the dataset was made (parameters inline)'
     (out / name).write_text(yaml.safe_dump(document, sort_keys=False))
     return replace(vessel, physics=name)
