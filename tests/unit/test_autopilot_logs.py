@@ -22,6 +22,7 @@ from vessel_datasets import log_to_dataset
 from vessel_datasets.format import read_dataset
 from vessel_datasets.quantities import local_projection
 
+from .dataflash import fmt_record, record
 from .tracks import trajectory
 
 LAT0, LON0 = 59.9, 10.7
@@ -74,13 +75,6 @@ def track():
 
 
 # ----------------------------------------------------------------- DataFlash writer
-def _fmt(msg_id, name, fmt, columns):
-    length = 3 + struct.calcsize('<' + ''.join(STRUCT[c] for c in fmt))
-    return b'\xa3\x95\x80' + struct.pack('<BB4s16s64s', msg_id, length, name.encode(),
-                                         fmt.encode(), ','.join(columns).encode())
-
-
-STRUCT = {'Q': 'Q', 'f': 'f', 'L': 'i', 'H': 'H', 'B': 'B'}
 DF_TYPES = {  # name -> (id, format, columns, rows every n samples of the 50 Hz track)
     'GPS': (130, 'QBLLf', ('TimeUS', 'I', 'Lat', 'Lng', 'Spd'), 10),
     'ATT': (131, 'Qf', ('TimeUS', 'Yaw'), 5),
@@ -94,7 +88,7 @@ def write_dataflash(path, truth, drop=()):
     out = bytearray()
     for name, (msg_id, fmt, columns, _) in DF_TYPES.items():
         if name not in drop:
-            out += _fmt(msg_id, name, fmt, columns)
+            out += fmt_record(msg_id, name, fmt, columns)
     speed = np.hypot(truth['north_dot'], truth['east_dot'])
     for i, t in enumerate(truth['t']):
         us = int(round(t * 1e6)) + 5_000_000  # the autopilot booted 5 s before
@@ -109,8 +103,7 @@ def write_dataflash(path, truth, drop=()):
         }
         for name, (msg_id, fmt, _, every) in DF_TYPES.items():
             if name not in drop and i % every == 0:
-                out += struct.pack('<BBB', 0xA3, 0x95, msg_id) + struct.pack(
-                    '<' + ''.join(STRUCT[c] for c in fmt), *rows[name])
+                out += record(msg_id, fmt, rows[name])
     path.write_bytes(bytes(out))
     return path
 

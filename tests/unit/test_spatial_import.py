@@ -14,47 +14,11 @@ from vessel_datasets.pipeline import Options, convert
 from vessel_datasets.readers.tables import TableRecordings
 from vessel_description import load_vessel, parse_vessel
 from vessel_physics import frames
-from vessel_physics.integrator import attitude_rates, body_to_ned
+from vessel_physics.integrator import body_to_ned
+
+from .tracks import spatial_flight as flight
 
 REAL = Path(__file__).resolve().parents[2].parent / 'shared' / 'real' / 'nanodrone'
-RATE = 100.0
-FINE = 10   # integration steps per sample
-
-
-def flight(seconds=30.0, seed=0):
-    """
-    Return a smooth 6-DOF flight (NED/FRD truth) integrated finely, sampled at 100 Hz.
-
-    Body rates and velocities are sums of sinusoids; the attitude follows the rates and
-    the position the velocity turned by the attitude (integrator's kinematics).
-    """
-    rng = np.random.default_rng(seed)
-    n = int(seconds * RATE) * FINE + 1
-    t = np.arange(n) / (RATE * FINE)
-
-    def signal(amplitude):
-        freq, phase = rng.uniform(0.2, 1.5, 3), rng.uniform(0, 2 * np.pi, 3)
-        return amplitude * np.sum([np.sin(2 * np.pi * f * t + ph) for f, ph in
-                                   zip(freq, phase, strict=True)], axis=0) / 3
-
-    u, v, w = signal(2.0), signal(2.0), signal(0.5)
-    p, q, r = signal(2.0), signal(2.0), signal(0.8)
-    phi, theta, psi = np.zeros(n), np.zeros(n), np.zeros(n)
-    pos = np.zeros((3, n))
-    h = 1.0 / (RATE * FINE)
-    for k in range(n - 1):
-        rates = attitude_rates(p[k], q[k], r[k], phi[k], theta[k])
-        phi[k + 1], theta[k + 1], psi[k + 1] = (phi[k] + h * rates[0], theta[k] + h * rates[1],
-                                                psi[k] + h * rates[2])
-        pos[:, k + 1] = pos[:, k] + h * np.array(body_to_ned(u[k], v[k], w[k], phi[k],
-                                                             theta[k], psi[k]))
-    every = slice(None, None, FINE)
-    truth = {'t': t[every], 'u': u[every], 'v': v[every], 'w': w[every], 'p': p[every],
-             'q': q[every], 'r': r[every], 'phi': phi[every], 'theta': theta[every],
-             'psi': psi[every], 'x': pos[0, every], 'y': pos[1, every], 'z': pos[2, every]}
-    truth['motors'] = [1600 + 200 * np.sin(2 * np.pi * (0.3 + 0.1 * i) * truth['t'])
-                       for i in range(4)]
-    return truth
 
 
 def as_recorded(truth):

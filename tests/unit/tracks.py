@@ -3,12 +3,15 @@ Tracks with exact kinematics for the recording tests, and the tables loggers mak
 
 ``trajectory`` integrates a smooth turning run in model units; ``csv_table`` writes it
 the way a logger would (degrees, knots, rpm, earth frame, rudder positive to port).
+``spatial_flight`` is a 6-DOF vehicle's flight (NED/FRD) for the multirotor recordings.
 """
 
 import math
 
 import numpy as np
 import pandas as pd
+
+from vessel_physics.integrator import attitude_rates, body_to_ned
 
 KNOT = 1852.0 / 3600.0
 RATE_HZ = 20.0
@@ -51,3 +54,39 @@ def csv_table(truth):
         've_kn': truth['east_dot'] / KNOT, 'r_deg': np.degrees(truth['r']),
         'hdg_deg': heading, 'north_m': truth['x'], 'east_m': truth['y'],
         'rpm': truth['n'] * 60 / (2 * math.pi), 'rudder_deg': -np.degrees(truth['delta'])})
+
+
+def spatial_flight(seconds=30.0, seed=0, rate_hz=100.0, fine=10):
+    """
+    Return a smooth 6-DOF flight (NED/FRD truth), integrated ``fine`` times finer.
+
+    Body rates and velocities are sums of sinusoids; the attitude follows the rates and
+    the position the velocity turned by the attitude (integrator's kinematics).
+    """
+    rng = np.random.default_rng(seed)
+    n = int(seconds * rate_hz) * fine + 1
+    t = np.arange(n) / (rate_hz * fine)
+
+    def signal(amplitude):
+        freq, phase = rng.uniform(0.2, 1.5, 3), rng.uniform(0, 2 * np.pi, 3)
+        return amplitude * np.sum([np.sin(2 * np.pi * f * t + ph) for f, ph in
+                                   zip(freq, phase, strict=True)], axis=0) / 3
+
+    u, v, w = signal(2.0), signal(2.0), signal(0.5)
+    p, q, r = signal(2.0), signal(2.0), signal(0.8)
+    phi, theta, psi = np.zeros(n), np.zeros(n), np.zeros(n)
+    pos = np.zeros((3, n))
+    h = 1.0 / (rate_hz * fine)
+    for k in range(n - 1):
+        rates = attitude_rates(p[k], q[k], r[k], phi[k], theta[k])
+        phi[k + 1], theta[k + 1], psi[k + 1] = (phi[k] + h * rates[0], theta[k] + h * rates[1],
+                                                psi[k] + h * rates[2])
+        pos[:, k + 1] = pos[:, k] + h * np.array(body_to_ned(u[k], v[k], w[k], phi[k],
+                                                             theta[k], psi[k]))
+    every = slice(None, None, fine)
+    truth = {'t': t[every], 'u': u[every], 'v': v[every], 'w': w[every], 'p': p[every],
+             'q': q[every], 'r': r[every], 'phi': phi[every], 'theta': theta[every],
+             'psi': psi[every], 'x': pos[0, every], 'y': pos[1, every], 'z': pos[2, every]}
+    truth['motors'] = [1600 + 200 * np.sin(2 * np.pi * (0.3 + 0.1 * i) * truth['t'])
+                       for i in range(4)]
+    return truth

@@ -6,13 +6,16 @@ DataFlash messages as topics -- ``GPS``, ``ATT``, ``XKF1``, ``RCOU``; ``GPS[1]``
 second instance of a message that has several -- and their fields (``Lat``, ``Yaw``,
 ``C3``). pymavlink's DataFlash reader parses the log (message formats from the log's
 own FMT messages, multipliers applied: degrees, m/s); each message is timed by its
-``TimeUS`` (microseconds since the autopilot booted).
+``TimeUS`` (microseconds since the autopilot booted), or in logs before 2015 (ArduCopter
+3.2/3.3) by its ``TimeMS`` (milliseconds since boot; their GPS message's ``TimeMS`` is
+the GPS week's, its boot time ``T``).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 import contextlib
+from functools import lru_cache
 import io
 import os
 import re
@@ -24,7 +27,11 @@ from ..sources import ConversionError, Part, Recording, find_files, from_arrays
 from ..topic_map import TopicMap
 
 SUFFIXES = ('.bin',)
-TIME_FIELD = 'TimeUS'
+# Boot-time fields, newest first, with their nanoseconds per count.
+TIME_FIELDS = (('TimeUS', 1_000), ('TimeMS', 1_000_000))
+# Messages of old logs whose TimeMS is not boot time: GPS carries the GPS week's
+# milliseconds there and its boot time in T.
+OLD_BOOT_TIME = {'GPS': ('T', 1_000_000)}
 _INSTANCE = re.compile(r'^(?P<name>[A-Z0-9_]+)(\[(?P<instance>\d+)\])?$')
 
 
@@ -78,10 +85,8 @@ class DataFlashRecordings:
             count += 1
             for topic in _topics_of(m, used.topics):
                 have = m.get_fieldnames()
-                if TIME_FIELD not in have:
-                    raise ConversionError(f'message {m.get_type()} has no {TIME_FIELD} field '
-                                          f'to time it')
-                times[topic].append(int(getattr(m, TIME_FIELD)) * 1000)
+                field, ns = _clock(m.get_type(), tuple(have))
+                times[topic].append(int(getattr(m, field)) * ns)
                 for f in fields[topic] & set(have):
                     columns[topic].setdefault(f, []).append(float(getattr(m, f)))
         if progress is not None:
@@ -91,6 +96,18 @@ class DataFlashRecordings:
                       {f: np.asarray(v, float) for f, v in columns[t].items()})
                   for t in used.topics if times[t]}
         return [Part(from_arrays(arrays, used, report, 'log'))], used
+
+
+@lru_cache(maxsize=256)
+def _clock(name: str, fields: tuple[str, ...]) -> tuple[str, int]:
+    """Return the boot-time field of a message type and its nanoseconds per count."""
+    if 'TimeUS' not in fields and name in OLD_BOOT_TIME and OLD_BOOT_TIME[name][0] in fields:
+        return OLD_BOOT_TIME[name]
+    for field, ns in TIME_FIELDS:
+        if field in fields:
+            return field, ns
+    raise ConversionError(f'message {name} has none of the fields '
+                          f'{[f for f, _ in TIME_FIELDS]} to time it')
 
 
 def _base(topic: str) -> str:
