@@ -77,7 +77,7 @@ deps_hash() { hash_files "$REQ"/*.txt "${BASH_SOURCE[0]}"; }
 deps_present() {
   "$VENV/bin/python" - <<'EOF' 2>/dev/null
 import importlib.util, sys
-needed = ['torch', 'rclpy', 'rosbags', 'colcon_core', 'pandas', 'ruff', 'shipmmg']
+needed = ['torch', 'rclpy', 'rosbags', 'colcon_core', 'pandas', 'ruff', 'shipmmg', 'rotorpy']
 sys.exit(any(importlib.util.find_spec(m) is None for m in needed))
 EOF
 }

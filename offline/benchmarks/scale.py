@@ -183,12 +183,23 @@ def train_throughput(dataset: Path, out: Path, processes: int, device: str, epoc
     subprocess.run(train_command(dataset, out, processes, device, epochs, threads),
                    check=True, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     wall = time.perf_counter() - start
-    log = [json.loads(line) for line in (out / 'log.jsonl').read_text().splitlines()]
-    seconds = sum(r['seconds'] for r in log)
-    samples = samples_per_epoch(dataset, 20) * len(log)
+    epochs = trained_epochs((out / 'log.jsonl').read_text())
+    seconds = sum(r['seconds'] for r in epochs)
+    samples = samples_per_epoch(dataset, 20) * len(epochs)
     return {'processes': processes, 'threads_each': threads, 'device': device,
-            'epochs': len(log), 'fit_seconds': seconds, 'startup_and_rest_seconds': wall - seconds,
-            'samples_per_s': samples / seconds}
+            'epochs': len(epochs), 'fit_seconds': seconds,
+            'startup_and_rest_seconds': wall - seconds, 'samples_per_s': samples / seconds}
+
+
+def trained_epochs(log_text: str) -> list[dict]:
+    """
+    Return the epochs of a training's log.jsonl that trained (each with its ``seconds``).
+
+    The log's first line scores the physics alone before any training (phase kind
+    ``reference``) and has no time of its own.
+    """
+    lines = [json.loads(line) for line in log_text.splitlines() if line.strip()]
+    return [r for r in lines if r.get('phase_kind') != 'reference']
 
 
 def peak_memory(dataset: Path, out: Path) -> dict:
