@@ -149,6 +149,21 @@ def test_folder_of_bags_and_bad_paths(tmp_path, long_bag):
         find_bags([tmp_path / 'notes.txt'])
 
 
+def test_a_folder_of_links_to_bags_finds_every_bag_once(tmp_path, long_bag):
+    """A campaign gathered by symbolic links converts like its bags given one by one."""
+    shutil.copytree(long_bag, tmp_path / 'store' / 'run1')
+    shutil.copytree(long_bag, tmp_path / 'store' / 'run2')
+    campaign = tmp_path / 'campaign'
+    campaign.mkdir()
+    for name in ('run1', 'run2'):
+        (campaign / name).symlink_to(tmp_path / 'store' / name, target_is_directory=True)
+    (campaign / 'again').symlink_to(tmp_path / 'store' / 'run1', target_is_directory=True)
+    (campaign / 'loop').symlink_to(campaign, target_is_directory=True)   # a link back up
+    bags = find_bags([campaign])
+    # 'again' is run1 once more: the first link in name order is kept.
+    assert sorted(b.name for b in bags) == ['again', 'run2']
+
+
 def test_not_an_mcap_file(tmp_path):
     bad = tmp_path / 'junk.mcap'
     bad.write_bytes(b'this is not a bag' * 10)

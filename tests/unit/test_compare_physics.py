@@ -102,3 +102,25 @@ def test_unknown_scenario_is_refused(tmp_path):
     result = run('simulate_scenario.py', '--scenario', 'kraken', '--out', tmp_path / 'x')
     assert result.returncode == 1
     assert "unknown scenario 'kraken'" in result.stderr and 'fouling' in result.stderr
+
+
+def test_a_shipped_vessel_given_by_its_file_has_its_scenarios(tmp_path, capsys):
+    """--vessel PATH of a shipped vessel's file is that vessel (it said 'no scenarios')."""
+    import yaml
+
+    from vessel_description.vessel import vessels_dir
+    from vessel_diagnosis.cli_scenario import main as simulate_scenario
+
+    path = vessels_dir() / 'otter.yaml'
+    code = simulate_scenario(['--vessel', str(path), '--scenario', 'kraken', '--out',
+                              str(tmp_path / 'x')])
+    said = capsys.readouterr().err
+    assert code == 1 and "unknown scenario 'kraken' of vessel otter" in said
+    # A file that only shares the name describes another vessel: refused, in one line.
+    data = yaml.safe_load(path.read_text())
+    data['rate_hz'] = 5.0
+    (tmp_path / 'otter.yaml').write_text(yaml.safe_dump(data))
+    code = simulate_scenario(['--vessel', str(tmp_path / 'otter.yaml'), '--scenario',
+                              'weak_thruster', '--out', str(tmp_path / 'y')])
+    said = capsys.readouterr().err
+    assert code == 1 and 'differs from the shipped vessel' in said and said.count('\n') == 1

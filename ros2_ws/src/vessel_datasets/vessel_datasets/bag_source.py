@@ -113,9 +113,18 @@ def find_bags(paths: Iterable[str | os.PathLike]) -> list[Bag]:
 
 def _search(root: Path) -> list[Bag]:
     bags: list[Bag] = []
-    for dirpath, dirnames, filenames in os.walk(root):
+    # Symbolic links to bag directories are followed (a campaign gathered by links), each
+    # real directory once (a link back up the tree would loop).
+    seen = {root.resolve()}
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=True):
         here = Path(dirpath)
-        dirnames.sort()
+        kept = []
+        for d in sorted(dirnames):
+            real = (here / d).resolve()
+            if real not in seen:
+                seen.add(real)
+                kept.append(d)
+        dirnames[:] = kept
         if METADATA in filenames:
             bags.append(_directory_bag(here))
             dirnames.clear()  # its subdirectories belong to it (see _directory_bag)

@@ -22,9 +22,30 @@ import sys
 import time
 
 from vessel_datasets.format import DatasetError
+from vessel_description import VesselError, load_vessel, shipped_vessels
 from vessel_diagnosis.scenarios import load_scenario_file, simulate_scenario
 from vessel_physics.errors import ConfigError
 from vessel_physics.simulation.config import DEFAULT_VESSEL
+
+
+def shipped_name(vessel: str) -> str:
+    """
+    Return the shipped vessel a --vessel names: its name, or the path of its file.
+
+    Scenarios belong to the shipped vessels; a file that describes one of them (the same
+    description, wherever it lies) is that vessel. A file that only shares a shipped
+    vessel's name is refused (VesselError, one line): its scenarios would be another's.
+    """
+    if vessel in shipped_vessels() or not Path(vessel).suffix:
+        return vessel
+    given = load_vessel(vessel)
+    if given.name in shipped_vessels():
+        shipped = load_vessel(given.name)
+        if given.to_dict() == shipped.to_dict():
+            return given.name
+        raise VesselError(f'{vessel} is named {given.name!r} but differs from the shipped '
+                          f'vessel of that name, whose scenarios these are')
+    return given.name
 
 
 def main(argv=None) -> int:
@@ -47,6 +68,11 @@ def main(argv=None) -> int:
                 print(f'{vessel:12s} {name:16s} '
                       f'{" ".join(str(scenario.get("description", "")).split())}')
         return 0
+    try:
+        args.vessel = shipped_name(args.vessel)
+    except VesselError as exc:
+        print(f'simulate_scenario: error: {exc}', file=sys.stderr)
+        return 1
     if args.vessel not in vessels:
         print(f'simulate_scenario: error: no scenarios for vessel {args.vessel!r}; vessels '
               f'with scenarios: {", ".join(vessels)}', file=sys.stderr)
