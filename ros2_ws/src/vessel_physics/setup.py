@@ -21,7 +21,8 @@ setup(
     zip_safe=True,
     maintainer='hybrid-ship maintainers',
     maintainer_email='maintainers@hybrid-ship.dev',
-    description='Vessel physics families (patrol, MMG, Fossen) and their simulator (no ROS).',
+    description='Vessel physics families (patrol, MMG, Fossen, multirotor) and their simulator '
+                '(no ROS).',
     license='Apache-2.0',
     entry_points={'console_scripts': [
         'scale_physics = vessel_physics.mmg.scale:main',

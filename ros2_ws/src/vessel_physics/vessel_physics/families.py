@@ -6,9 +6,10 @@ from vessel_physics.errors import ConfigError
 from vessel_physics.family import Family
 from vessel_physics.fossen import FAMILY as FOSSEN
 from vessel_physics.mmg import FAMILY as MMG
+from vessel_physics.multirotor import FAMILY as MULTIROTOR
 from vessel_physics.patrol import FAMILY as PATROL
 
-FAMILIES: dict[str, Family] = {f.name: f for f in (PATROL, MMG, FOSSEN)}
+FAMILIES: dict[str, Family] = {f.name: f for f in (PATROL, MMG, FOSSEN, MULTIROTOR)}
 
 
 def family_of_format(fmt, source: str) -> Family:

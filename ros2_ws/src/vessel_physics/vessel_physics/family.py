@@ -3,9 +3,10 @@ The family interface: what every physics family gives the simulator, the models 
 
 A family is one way of writing a vessel's equations of motion: the patrol boat's 4-DOF
 terms (``vessel_physics.patrol``), the MMG standard model (``vessel_physics.mmg``), the
-Fossen matrix model of small craft (``vessel_physics.fossen``). Each is one folder that
-reads top to bottom: its parameters, its named terms, its mass matrix, and a
-``Family`` that ties them together. Everything else holds a ``Physics`` -- a family,
+Fossen matrix model of small craft (``vessel_physics.fossen``), a multirotor in six
+degrees of freedom (``vessel_physics.multirotor``). Each is one folder that reads top to
+bottom: its parameters, its named terms, its mass matrix, and a ``Family`` that ties
+them together. Everything else holds a ``Physics`` -- a family,
 its parameter values, the terms in use and extra (discovered) terms -- and calls its
 methods in the VESSEL's own vectors (the vessel file's states and controls): no module
 outside a family names its states, coefficients or a vessel.

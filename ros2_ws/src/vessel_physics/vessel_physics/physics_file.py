@@ -5,7 +5,7 @@ Physics files: which family, its parameters, the terms in use and extra (discove
 file is YAML::
 
     format: vessel-physics/2
-    family: patrol                  # patrol | mmg | fossen (vessel_physics.families)
+    family: patrol                  # patrol | mmg | fossen | multirotor (families)
     parameters: patrol_vessel.yaml  # the family's parameter file: beside this file, then
                                     # the package's (or a mapping of the values themselves)
     terms: [rigid_body_coriolis, restoring, hull_damping, propulsion, wind]
@@ -17,9 +17,10 @@ file is YAML::
 term names a force or candidate term, with ``dofs`` the letters of the family's
 generalized forces it acts on. Extra keys of an extra term (category, ci95, ...) are kept
 as information. A family's parameter file alone is a physics file too (its whole model):
-``format: mmg-params/1``, ``fossen-params/1``, ``patrol-params/1`` (patrol parameter
-files older than that tag have no format key). Files of the first version
-(``vessel-physics/1``) are the patrol family's and name the parameter file ``vessel:``.
+``format: mmg-params/1``, ``fossen-params/1``, ``multirotor-params/1``, ``patrol-params/1``
+(patrol parameter files older than that tag have no format key). Files of the first
+version (``vessel-physics/1``) are the patrol family's and name the parameter file
+``vessel:``.
 
 Where a file is found (``vessel_physics.files.find_file``): a path as given; a name beside
 the vessel file that names it (``vessel.physics``), beside the physics file that names a
