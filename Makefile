@@ -3,7 +3,7 @@
 SHELL := /bin/bash
 .DEFAULT_GOAL := help
 
-.PHONY: help setup rostools demo test test-slow lint bench clean
+.PHONY: help setup rostools bench-env demo test test-slow lint bench clean
 
 help:  ## list the targets
 	@grep -E '^[a-z-]+:.*## ' $(MAKEFILE_LIST) | sed -E 's/:.*## /\t/' | expand -t 12
@@ -13,6 +13,9 @@ setup:  ## create .venv, install pinned dependencies, build ros2_ws (idempotent)
 
 rostools: setup  ## the test-only ros2 CLI and launch in .venv-rostools (idempotent)
 	@tools/setup.sh rostools
+
+bench-env:  ## the bench-only environment of peer models in .venv-bench (idempotent)
+	@tools/setup.sh bench
 
 demo: setup  ## run the main job: simulator + predictor + client, forecast vs truth
 	@tools/with_env.sh tools/demo.sh
@@ -32,4 +35,4 @@ bench: setup  ## the benchmarks, JSON on stdout (the 10-minute soak: offline/ben
 	@for suite in sim convert forecast scale launch; do tools/with_env.sh python offline/bench.py $$suite; done
 
 clean:  ## remove build products and the test-only tools (keeps .venv)
-	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log .pytest_cache .ruff_cache .venv-rostools
+	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log .pytest_cache .ruff_cache .venv-rostools .venv-bench

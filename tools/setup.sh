@@ -7,17 +7,20 @@
 #   which `make test` runs) adds the test-only ros2 CLI and launch in a directory of
 #   their own.
 #
-# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|lock]
+# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|bench|lock]
 #   (`test`: everything `make test` needs; the workspace build and the test-only tools,
-#   independent of each other, are made at the same time)
+#   independent of each other, are made at the same time; `bench`: the bench-only
+#   environment of peer models, .venv-bench, from requirements/bench.txt: never part of
+#   the product, nor of `all` or `test`)
 # Environment: PYTHON (interpreter to use), VENV (default .venv at the repo root),
-#   ROSTOOLS (default .venv-rostools at the repo root).
+#   ROSTOOLS (default .venv-rostools at the repo root), BENCH (default .venv-bench).
 # Each failure ends with one line starting "setup: error:".
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 VENV="${VENV:-$ROOT/.venv}"
 ROSTOOLS="${ROSTOOLS:-$ROOT/.venv-rostools}"
+BENCH="${BENCH:-$ROOT/.venv-bench}"
 VENDOR="$ROOT/tools/rostools"
 WS="$ROOT/ros2_ws"
 REQ="$ROOT/requirements"
@@ -72,7 +75,12 @@ stage_venv() {
 }
 
 # --- stage: pinned dependencies ------------------------------------------------------
-deps_hash() { hash_files "$REQ"/*.txt "${BASH_SOURCE[0]}"; }
+# requirements/bench.txt is the bench-only environment's, not the venv's.
+deps_hash() {
+  local f files=()
+  for f in "$REQ"/*.txt; do [ "${f##*/}" = bench.txt ] || files+=("$f"); done
+  hash_files "${files[@]}" "${BASH_SOURCE[0]}"
+}
 
 deps_present() {
   "$VENV/bin/python" - <<'EOF' 2>/dev/null
@@ -245,6 +253,31 @@ stage_rostools() {
   echo "$want" >"$ROSTOOLS/.rostools-hash"
 }
 
+# --- stage: the bench-only environment of peer models ---------------------------------
+# Peers (the nano-drone benchmark's ONNX models and scalers, later other identification
+# toolboxes) run in an interpreter of their own, $BENCH, made from the pinned
+# requirements/bench.txt alone: the product never imports them, and the offline/peers/
+# adapters that do run with $BENCH/bin/python. Remade whole when its inputs changed.
+bench_hash() { hash_files "$REQ/bench.txt" "${BASH_SOURCE[0]}"; }
+
+stage_bench() {
+  local want; want="$(bench_hash)"
+  [ "$(cat "$BENCH/.bench-hash" 2>/dev/null)" = "$want" ] && [ -x "$BENCH/bin/python" ] \
+    && return 0
+  local py; py="$(find_python)"
+  say "creating the bench-only environment $BENCH from requirements/bench.txt (about a minute)"
+  rm -rf "$BENCH"
+  "$py" -m venv "$BENCH" || die "could not create $BENCH with $py (on Debian/Ubuntu: apt-get install python3.11-venv)"
+  local log="$BENCH/pip-install.log"
+  if ! "$BENCH/bin/python" -m pip install --disable-pip-version-check --retries 2 \
+      --timeout 30 -r "$REQ/bench.txt" >"$log" 2>&1; then
+    local why; why="$(VENV="$BENCH" index_unreachable)"
+    [ -n "$why" ] && die "no network to the package registry: cannot reach $why; connect or set PIP_INDEX_URL to a reachable mirror (log: $log)"
+    die "installing the bench environment failed: $(grep -E 'ERROR' "$log" | tail -n 1) (log: $log)"
+  fi
+  echo "$want" >"$BENCH/.bench-hash"
+}
+
 # --- stage: record the exact versions that were installed -----------------------------
 stage_lock() {
   # Pins every distribution the venv holds (not the egg-info entries embedded in the
@@ -286,9 +319,10 @@ main() {
     build|all) stage_venv; stage_deps; stage_fixups; stage_build ;;
     rostools) stage_venv; stage_deps; stage_fixups; stage_rostools ;;
     test) stage_venv; stage_deps; stage_fixups; both stage_build stage_rostools ;;
+    bench) stage_bench ;;
     lock) stage_lock ;;
     -h|--help) awk 'NR > 1 && !/^#/ {exit} NR > 1 {sub(/^# ?/, ""); print}' "${BASH_SOURCE[0]}" ;;
-    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools, test or lock)" ;;
+    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools, test, bench or lock)" ;;
   esac
 }
 

@@ -93,5 +93,5 @@ def test_help_is_the_header_comment_and_nothing_after_it():
     lines = result.stdout.splitlines()
     assert lines[0].startswith('Idempotent set-up')
     assert lines[-1] == 'Each failure ends with one line starting "setup: error:".'
-    assert 'Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|lock]' \
+    assert 'Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|bench|lock]' \
         in lines
