@@ -26,6 +26,7 @@ setup(
         'set_threshold = hybrid_models.cli.set_threshold:main',
         'set_bands = hybrid_models.cli.set_bands:main',
         'reproduce_table2 = hybrid_models.cli.reproduce_table2:main',
+        'reproduce_table3 = hybrid_models.cli.reproduce_table3:main',
         'compare_physics = hybrid_models.cli.compare_physics:main',
         'model_card = hybrid_models.cli.model_card:main',
         'crossval = hybrid_models.cli.crossval:main',

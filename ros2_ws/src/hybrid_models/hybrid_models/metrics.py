@@ -64,12 +64,27 @@ def dead_reckoning(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]
 
 def _dead_reckoning_3d(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]:
     """``dead_reckoning`` of a 6-DOF vehicle: positions (..., H, 3) NED, headings (..., H)."""
+    velocity, heading = earth_velocities(z, spec)
+    return spec.dt * np.cumsum(velocity, axis=-2), heading
+
+
+def earth_velocities(z: np.ndarray, spec: Vessel, heading0=0.0
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return a 6-DOF vehicle's velocities over ground (..., H, 3), NED, and its headings.
+
+    The heading is integrated from ``heading0`` (rad; scalar or (...,)) as in
+    ``dead_reckoning``; step k's velocity is its body velocity turned by its roll and
+    pitch and the heading it starts from. These are the inertial-frame velocities
+    (x', y', z') of Baier et al.'s quadrotor, in NED.
+    """
     u, v, w, p, q, r, phi, theta = (z[..., spec.state_index(n)] for n in
                                     ('u', 'v', 'w', 'p', 'q', 'r', 'phi', 'theta'))
-    heading = spec.dt * np.cumsum(attitude_rates(p, q, r, phi, theta)[2], axis=-1)
-    held = np.concatenate([np.zeros_like(heading[..., :1]), heading[..., :-1]], axis=-1)
-    velocity = np.stack(body_to_ned(u, v, w, phi, theta, held), axis=-1)
-    return spec.dt * np.cumsum(velocity, axis=-2), heading
+    start = np.asarray(heading0, np.float64)[..., None]
+    heading = start + spec.dt * np.cumsum(attitude_rates(p, q, r, phi, theta)[2], axis=-1)
+    held = np.concatenate([np.broadcast_to(start, heading[..., :1].shape),
+                           heading[..., :-1]], axis=-1)
+    return np.stack(body_to_ned(u, v, w, phi, theta, held), axis=-1), heading
 
 
 def positions(z: np.ndarray, spec: Vessel) -> np.ndarray:

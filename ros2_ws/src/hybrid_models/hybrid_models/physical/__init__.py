@@ -4,24 +4,37 @@ Physical models: first principles (any family's physics), regression (Lin, Hyd, 
 ``build_physical({'kind': 'pro+lin', ...}, vessel)`` makes any of them; kinds are written
 like the paper's names in lower case: 'min', 'pro', 'lin', 'hyd', 'qua', 'min+lin', ...
 Kind 'physics' is the first-principles model of a physics file (``physics: PATH``) of any
-family (``vessel_physics``): the patrol boat's, an MMG ship's, a Fossen small craft's, or
-the augmented physics the diagnosis writes; 'physics+lin' etc. combine it too. 'min'
-and 'pro' are the patrol family's term sets of the paper, 'mmg' the MMG family's model
-(optionally some of its ``terms``), on the physics the vessel file names.
+family (``vessel_physics``): the patrol boat's, an MMG ship's, a Fossen small craft's, a
+multirotor's, or the augmented physics the diagnosis writes; 'physics+lin' etc. combine
+it too. The families' named term sets are kinds of their own -- 'min' and 'pro' of the
+patrol family (the paper's), 'minq' of the multirotor family (the paper's quadrotor) --
+and 'mmg' is the MMG family's model (optionally some of its ``terms``), each on the
+physics the vessel file names.
 """
 
 from __future__ import annotations
 
 from hybrid_models.physical.base import PhysicalModel
 from hybrid_models.physical.composite import CompositeModel
+from hybrid_models.physical.first_principles import (
+    FAMILY_KINDS,
+    PHYSICS_FILE_KIND,
+    build_first_principles,
+)
 from hybrid_models.physical.regression import RegressionModel
 from vessel_description import Vessel
+from vessel_physics.families import FAMILIES
 
 REGRESSION_KINDS = ('lin', 'hyd', 'qua')
-FIRST_PRINCIPLES_KINDS = ('min', 'pro', 'physics', 'mmg')
 
 __all__ = ['PhysicalModel', 'CompositeModel', 'RegressionModel', 'build_physical',
-           'REGRESSION_KINDS', 'FIRST_PRINCIPLES_KINDS']
+           'REGRESSION_KINDS', 'first_principles_kinds']
+
+
+def first_principles_kinds() -> tuple[str, ...]:
+    """Return the first-principles kinds: 'physics', the family kinds, the term sets."""
+    sets = sorted({name for family in FAMILIES.values() for name in family.term_sets})
+    return (PHYSICS_FILE_KIND, *FAMILY_KINDS, *sets)
 
 
 def build_physical(cfg: dict, spec: Vessel) -> PhysicalModel:
@@ -40,12 +53,13 @@ def build_physical(cfg: dict, spec: Vessel) -> PhysicalModel:
     """
     kind = str(cfg.get('kind', '')).lower()
     parts = kind.split('+')
-    fp_kind = parts[0] if parts[0] in FIRST_PRINCIPLES_KINDS else None
+    first = first_principles_kinds()
+    fp_kind = parts[0] if parts[0] in first else None
     reg_kinds = parts[1:] if fp_kind else parts
     if len(reg_kinds) > 1 or (reg_kinds and reg_kinds[0] not in REGRESSION_KINDS) or (
             not fp_kind and not reg_kinds):
         raise ValueError(f'unknown physical model {kind!r}; use one of '
-                         f'{FIRST_PRINCIPLES_KINDS + REGRESSION_KINDS} or first+regression, '
+                         f'{first + REGRESSION_KINDS} or first+regression, '
                          f"e.g. 'min+lin'")
     damped = cfg.get('damped', False)
     if not isinstance(damped, bool):
@@ -59,7 +73,5 @@ def build_physical(cfg: dict, spec: Vessel) -> PhysicalModel:
                                      masks=cfg.get('masks', 'coupled'), damped=damped)
     if fp_kind is None:
         return regression
-    # Imported here so that regression-only models work without the vessel physics.
-    from hybrid_models.physical.first_principles import build_first_principles
     fp = build_first_principles(fp_kind, spec, cfg, int(cfg.get('substeps', 4)))
     return fp if regression is None else CompositeModel(fp, regression)
