@@ -6,7 +6,9 @@ the air (m/s) and the body rates (rad/s), FRD, then roll and pitch (rad, Euler Z
 ``c`` (..., n_rotors) = the rotor speeds (rad/s, >= 0) in the order the parameter file
 lists the rotors. Forces (..., 6) = [X, Y, Z, K, M, N] about the CG in FRD (N, N m).
 A force F acting at a rotor's hub r = (x, y, z) adds the moment r x F. Every term is
-written against the Array API (numpy, torch, jax).
+written against the Array API (numpy, torch, jax), the rotors as arrays (..., n_rotors)
+(the simulator evaluates the model at every RK4 stage: a loop over the rotors cost it
+three times as much).
 
 Rotor aerodynamics as rotorpy writes them (Forster 2015; Grafe et al. 2026): thrust
 k_eta n^2 along -z, drag torque k_m n^2 about z, the H-force -n (k_d v_x, k_d v_y,
@@ -17,9 +19,13 @@ moment is not modelled (its k_flap is 0 for the vehicles it ships).
 
 from __future__ import annotations
 
-from vessel_physics.arrays import namespace
+from functools import lru_cache
+
+import numpy as np
+
+from vessel_physics.arrays import constant, namespace
 from vessel_physics.family import unit_force
-from vessel_physics.multirotor.params import SPIN_SIGN, MultirotorParams, Rotor
+from vessel_physics.multirotor.params import SPIN_SIGN, MultirotorParams
 
 DOFS = ('X', 'Y', 'Z', 'K', 'M', 'N')
 STATES = ('u', 'v', 'w', 'p', 'q', 'r', 'phi', 'theta')
@@ -28,22 +34,44 @@ STATES = ('u', 'v', 'w', 'p', 'q', 'r', 'phi', 'theta')
 def _wrench(like, fx=0.0, fy=0.0, fz=0.0, mx=0.0, my=0.0, mz=0.0):
     """Stack six components (arrays or floats) into (..., 6) shaped like ``like``."""
     xp = namespace(like)
+    if xp is np:     # the simulator's path: filled in place, a third of the stack's time
+        out = np.zeros(like.shape + (6,), dtype=like.dtype)
+        for i, part in enumerate((fx, fy, fz, mx, my, mz)):
+            if not (isinstance(part, float) and part == 0.0):
+                out[..., i] = part
+        return out
     zero = xp.zeros_like(like)
     return xp.stack([zero + fx, zero + fy, zero + fz, zero + mx, zero + my, zero + mz],
                     axis=-1)
 
 
-def _at_hub(rotor: Rotor, fx, fy, fz):
-    """Return the moment r x F (K, M, N) of a force at the rotor's hub."""
-    return (rotor.y * fz - rotor.z * fy, rotor.z * fx - rotor.x * fz,
-            rotor.x * fy - rotor.y * fx)
+def _rotor_wrench(n, fx=None, fy=None, fz=None, mx=None, my=None, mz=None):
+    """Sum per-rotor components (..., n_rotors) into a wrench (..., 6); None is zero."""
+    xp = namespace(n)
+    zero = xp.zeros_like(n)
+    parts = [zero if part is None else part for part in (fx, fy, fz, mx, my, mz)]
+    return xp.sum(xp.stack(parts, axis=-2), axis=-1)
 
 
-def _hub_air_velocity(z, rotor: Rotor):
-    """Return the hub's velocity through the air, v + w x r (m/s, FRD)."""
-    u, v, w, p, q, r = (z[..., i] for i in range(6))
-    return (u + q * rotor.z - r * rotor.y, v + r * rotor.x - p * rotor.z,
-            w + p * rotor.y - q * rotor.x)
+@lru_cache(maxsize=64)
+def _rotor_table(params: MultirotorParams) -> np.ndarray:
+    """Return the hubs' x, y, z (m, FRD) and spin signs of the rotors, (4, n_rotors)."""
+    return np.array([[r.x for r in params.rotors], [r.y for r in params.rotors],
+                     [r.z for r in params.rotors],
+                     [SPIN_SIGN[r.spin] for r in params.rotors]])
+
+
+def _rotors(z, c, params: MultirotorParams):
+    """Return the speeds (..., n_rotors) and the hubs' x, y, z and spin signs, as ``z``."""
+    xp = namespace(z, c)
+    table = constant(_rotor_table(params), z, xp)
+    return xp, c[..., :table.shape[1]], table[0], table[1], table[2], table[3]
+
+
+def _hub_air_velocity(z, x, y, h):
+    """Return each hub's velocity through the air, v + w x r (m/s, FRD), (..., n_rotors)."""
+    u, v, w, p, q, r = (z[..., i:i + 1] for i in range(6))
+    return u + q * h - r * y, v + r * x - p * h, w + p * y - q * x
 
 
 def rigid_body_coriolis(z, c, params: MultirotorParams):
@@ -66,30 +94,17 @@ def gravity(z, c, params: MultirotorParams):
                    weight * xp.cos(theta) * xp.cos(phi))
 
 
-def _thrust_and_torque(z, c, params: MultirotorParams, weights, thrust=True, torque=True):
-    """Thrust k_eta n^2 along -z at each hub (with r x F) and drag torque, rotor i weighted."""
-    fz = mx = my = mz = 0.0
-    for i, rotor in enumerate(params.rotors):
-        if not weights[i]:
-            continue
-        n2 = c[..., i] * c[..., i]
-        if thrust:
-            force = -weights[i] * params.k_eta * n2
-            k, m, _ = _at_hub(rotor, 0.0, 0.0, force)
-            fz, mx, my = fz + force, mx + k, my + m
-        if torque:
-            mz = mz + weights[i] * SPIN_SIGN[rotor.spin] * params.k_m * n2
-    return _wrench(z[..., 0], 0.0, 0.0, fz, mx, my, mz)
-
-
 def rotor_thrust(z, c, params: MultirotorParams):
     """Each rotor's thrust k_eta n^2 along -z (FRD) at its hub: Z and the moment r x F (K, M)."""
-    return _thrust_and_torque(z, c, params, [1.0] * len(params.rotors), torque=False)
+    _, n, x, y, _, _ = _rotors(z, c, params)
+    thrust = params.k_eta * n * n                     # N, up: the force is -thrust along z
+    return _rotor_wrench(n, fz=-thrust, mx=-y * thrust, my=x * thrust)
 
 
 def rotor_torque(z, c, params: MultirotorParams):
     """Reaction of each rotor's drag torque: N = +k_m n^2 for ccw, -k_m n^2 for cw (params)."""
-    return _thrust_and_torque(z, c, params, [1.0] * len(params.rotors), thrust=False)
+    xp, n, _, _, _, spin = _rotors(z, c, params)
+    return _wrench(z[..., 0], mz=params.k_m * xp.sum(spin * n * n, axis=-1))
 
 
 def rotor_drag(z, c, params: MultirotorParams):
@@ -99,14 +114,10 @@ def rotor_drag(z, c, params: MultirotorParams):
     F = -n (k_d v_hx, k_d v_hy, k_z v_hz) at the hub (FRD; rotorpy's rotor drag and
     induced inflow, Forster 2015), M = r x F.
     """
-    fx = fy = fz = mx = my = mz = 0.0
-    for i, rotor in enumerate(params.rotors):
-        n = c[..., i]
-        vx, vy, vz = _hub_air_velocity(z, rotor)
-        hx, hy, hz = -n * params.k_d * vx, -n * params.k_d * vy, -n * params.k_z * vz
-        k, m, nn = _at_hub(rotor, hx, hy, hz)
-        fx, fy, fz, mx, my, mz = fx + hx, fy + hy, fz + hz, mx + k, my + m, mz + nn
-    return _wrench(z[..., 0], fx, fy, fz, mx, my, mz)
+    _, n, x, y, h, _ = _rotors(z, c, params)
+    vx, vy, vz = _hub_air_velocity(z, x, y, h)
+    hx, hy, hz = -params.k_d * n * vx, -params.k_d * n * vy, -params.k_z * n * vz
+    return _rotor_wrench(n, hx, hy, hz, y * hz - h * hy, h * hx - x * hz, x * hy - y * hx)
 
 
 def translational_lift(z, c, params: MultirotorParams):
@@ -116,13 +127,10 @@ def translational_lift(z, c, params: MultirotorParams):
     As rotorpy adds it to each rotor's thrust (independent of the rotor speed), with its
     moment r x F.
     """
-    fz = mx = my = 0.0
-    for rotor in params.rotors:
-        vx, vy, _ = _hub_air_velocity(z, rotor)
-        lift = -params.k_h * (vx * vx + vy * vy)
-        k, m, _ = _at_hub(rotor, 0.0, 0.0, lift)
-        fz, mx, my = fz + lift, mx + k, my + m
-    return _wrench(z[..., 0], 0.0, 0.0, fz, mx, my, 0.0)
+    _, _, x, y, h, _ = _rotors(z, c, params)
+    vx, vy, _ = _hub_air_velocity(z, x, y, h)
+    lift = -params.k_h * (vx * vx + vy * vy)           # N along z at each hub
+    return _rotor_wrench(lift, fz=lift, mx=y * lift, my=-x * lift)
 
 
 def parasitic_drag(z, c, params: MultirotorParams):
@@ -147,8 +155,13 @@ def rotor_share(index: int):
     have fewer rotors.
     """
     def term(z, c, params: MultirotorParams):
-        weights = [1.0 if i == index else 0.0 for i in range(len(params.rotors))]
-        return _thrust_and_torque(z, c, params, weights)
+        if index >= len(params.rotors):
+            return _wrench(z[..., 0])
+        rotor = params.rotors[index]
+        n2 = c[..., index] * c[..., index]
+        force = -params.k_eta * n2                     # N along z at the hub
+        return _wrench(z[..., 0], fz=force, mx=rotor.y * force, my=-rotor.x * force,
+                       mz=SPIN_SIGN[rotor.spin] * params.k_m * n2)
 
     term.__name__ = f'rotor{index + 1}_thrust'
     term.__doc__ = (f'Thrust, its moment and the drag torque of rotor {index + 1} in the '
