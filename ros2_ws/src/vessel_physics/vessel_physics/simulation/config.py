@@ -54,6 +54,7 @@ from vessel_physics.errors import ConfigError, did_you_mean
 from vessel_physics.family import Physics
 from vessel_physics.files import config_dir, find_file, read_document
 from vessel_physics.physics_file import load_physics
+from vessel_physics.simulation.trajectories import KINDS
 
 __all__ = ['ConfigError', 'SimConfig', 'load_simulation', 'load_hook', 'default_config_path',
            'vessel_config_path']
@@ -223,6 +224,39 @@ class CurrentConfig:
 
 
 @dataclass(frozen=True)
+class ControllerConfig:
+    """Gains of the flight controller (see simulation.flight), per axis."""
+
+    position_gain: tuple[float, float, float]
+    velocity_gain: tuple[float, float, float]
+    attitude_gain: tuple[float, float, float]
+    rate_gain: tuple[float, float, float]
+    max_tilt_rad: float
+    min_thrust_share: float
+
+
+@dataclass(frozen=True)
+class FlightConfig:
+    """
+    A multirotor's flights (see simulation.flight and simulation.trajectories).
+
+    ``kinds`` is the cycle of trajectory kinds that runs take in turn (a kind listed
+    twice flies twice as often); each kind's own settings are a mapping of the keys of
+    ``FLIGHT_SCHEMA``.
+    """
+
+    enabled: bool
+    controller: ControllerConfig
+    kinds: tuple[str, ...]
+    ramp_s: float
+    square: Mapping[str, Any]
+    random: Mapping[str, Any]
+    multisine: Mapping[str, Any]
+    melon: Mapping[str, Any]
+    aggressive: Mapping[str, Any]
+
+
+@dataclass(frozen=True)
 class NoiseConfig:
     """Gaussian sensor noise standard deviations (SI units of each channel)."""
 
@@ -237,6 +271,8 @@ class SimConfig:
 
     ``actuators`` maps each vessel actuator to its servo (low, high, time constant s,
     max rate per s); ``noise.std`` holds one standard deviation per measured channel.
+    ``flight`` is the flight controller's section of a vehicle with rotors (None for
+    the others, which the ``operator`` drives).
     """
 
     vessel: Vessel
@@ -255,6 +291,7 @@ class SimConfig:
     extra_forces: str | None
     extra_forces_from_s: float | None = None
     extra_forces_ramp_s: float = 60.0
+    flight: FlightConfig | None = None
     source: str = field(default='<defaults>', compare=False)
 
     @property
@@ -273,8 +310,10 @@ class SimConfig:
         out = {'vessel_file': self.vessel_file, 'vessel': self.vessel.name,
                'physics_file': self.physics_file,
                'physics': physics_to_dict(self.physics, inline=True)}
+        skip = ('vessel', 'physics', 'vessel_file', 'physics_file', 'source') + (
+            ('flight',) if self.flight is None else ('operator',))
         for f in fields(self):
-            if f.name in ('vessel', 'physics', 'vessel_file', 'physics_file', 'source'):
+            if f.name in skip:
                 continue
             value = getattr(self, f.name)
             out[f.name] = _plain(asdict(value) if hasattr(value, '__dataclass_fields__')
@@ -294,9 +333,12 @@ NOISE_CHANNELS = {   # default standard deviation of each channel a vessel may m
     'u': (0.02, 'm/s'), 'v': (0.02, 'm/s'), 'p': (0.001, 'rad/s'), 'r': (0.0005, 'rad/s'),
     'phi': (0.002, 'rad'), 'psi': (0.002, 'rad'), 'x': (1.0, 'm'), 'y': (1.0, 'm'),
     'wind_speed': (0.2, 'm/s'), 'wind_dir': (0.05, 'rad'),
+    # a 6-DOF vehicle's third components, as their planar twins by default
+    'w': (0.02, 'm/s'), 'q': (0.001, 'rad/s'), 'theta': (0.002, 'rad'), 'z': (1.0, 'm'),
 }
 NOISE_BY_KIND = {   # actuators by kind, in their model unit
     'propeller': 0.5, 'rudder': 0.002, 'azimuth': 0.002, 'thruster': 0.0, 'other': 0.0,
+    'rotor': 5.0,
 }
 OPERATOR_MODES = ('routine', 'zigzag')
 # Operator orders derived from the vessel file where a scenario leaves them null, as
@@ -367,6 +409,42 @@ class Deviations:
             out[str(key)] = Number(0.0, 0.0, 1e3).check(number)
         return out
 
+@dataclass(frozen=True)
+class Vector:
+    """A list of ``len(default)`` numbers, each in [lo, hi]."""
+
+    default: tuple[float, ...]
+    lo: float
+    hi: float
+    unit: str = ''
+
+    def allowed(self) -> str:
+        unit = f' ({self.unit})' if self.unit else ''
+        return f'a list of {len(self.default)} numbers {self.lo:g} <= value <= {self.hi:g}{unit}'
+
+    def check(self, value: Any) -> tuple[float, ...]:
+        if not isinstance(value, (list, tuple)) or len(value) != len(self.default):
+            raise ValueError
+        return tuple(Number(0.0, self.lo, self.hi).check(v) for v in value)
+
+
+@dataclass(frozen=True)
+class Names:
+    """A non-empty list of names, each one of ``options`` (repeats allowed)."""
+
+    default: tuple[str, ...]
+    options: tuple[str, ...]
+
+    def allowed(self) -> str:
+        return f'a non-empty list of {", ".join(self.options)} (repeats allowed)'
+
+    def check(self, value: Any) -> tuple[str, ...]:
+        if not isinstance(value, (list, tuple)) or not value or \
+                any(v not in self.options for v in value):
+            raise ValueError
+        return tuple(value)
+
+
 SCHEMA: dict[str, Any] = {
     'vessel': Text('patrol_boat', 'a vessel file name or path (vessel_description)'),
     'physics': Text(None, 'a physics or parameter file name or path', optional=True),
@@ -430,6 +508,65 @@ SCHEMA: dict[str, Any] = {
     'extra_forces': Text(None, "a hook 'module:function'", optional=True),
     'extra_forces_from_s': Number(None, -3600.0, 1e9, 's', optional=True),
     'extra_forces_ramp_s': Number(60.0, 0.0, 1e6, 's', lo_open=True),
+}
+
+
+def _yaw(amplitude: tuple[float, float], period: tuple[float, float]) -> dict:
+    """Return the keys of the heading swing every trajectory kind has (trajectories.YawSwing)."""
+    return {'yaw_amplitude_rad': Interval(amplitude, 0.0, 3.2, 'rad'),
+            'yaw_period_s': Interval(period, 0.0, 1e5, 's', lo_open=True)}
+
+
+# The flight controller's section: only vehicles with rotors have one (simulation.flight,
+# simulation.trajectories; docs/simulator.md).
+FLIGHT_SCHEMA: dict[str, Any] = {
+    'enabled': Flag(True),
+    'kinds': Names(('random', 'square', 'multisine', 'random', 'melon', 'aggressive'), KINDS),
+    'ramp_s': Number(2.0, 0.0, 600.0, 's'),
+    'controller': {
+        'position_gain': Vector((6.5, 6.5, 15.0), 0.0, 1e4, '1/s^2: north, east, down'),
+        'velocity_gain': Vector((4.0, 4.0, 9.0), 0.0, 1e4, '1/s: north, east, down'),
+        'attitude_gain': Vector((310.0, 310.0, 310.0), 0.0, 1e6, '1/s^2: roll, pitch, yaw'),
+        'rate_gain': Vector((57.0, 57.0, 57.0), 0.0, 1e4, '1/s: roll, pitch, yaw'),
+        'max_tilt_rad': Number(1.1, 0.0, 1.5, 'rad', lo_open=True),
+        'min_thrust_share': Number(0.2, 0.0, 1.0),
+    },
+    'square': {
+        'side_m': Interval((0.8, 1.2), 0.0, 100.0, 'm', lo_open=True),
+        'move_s': Interval((0.65, 0.95), 0.0, 600.0, 's', lo_open=True),
+        'hold_s': Interval((0.5, 1.5), 0.0, 600.0, 's', lo_open=True),
+        'climb_m': Interval((0.5, 1.0), 0.0, 100.0, 'm'),
+        **_yaw((0.0, 0.2), (6.0, 15.0)),
+    },
+    'random': {
+        'box_m': Vector((1.1, 1.1, 0.45), 0.0, 100.0, 'm: half-extents north, east, down'),
+        'speed_mps': Interval((0.6, 1.4), 0.0, 50.0, 'm/s', lo_open=True),
+        'min_segment_s': Number(0.6, 0.0, 600.0, 's', lo_open=True),
+        **_yaw((0.0, 0.2), (6.0, 15.0)),
+    },
+    'multisine': {
+        'horizontal_amplitude_m': Interval((0.35, 0.6), 0.0, 100.0, 'm'),
+        'vertical_amplitude_m': Interval((0.25, 0.5), 0.0, 100.0, 'm'),
+        'components': Number(2, 1, 20, integer=True),
+        'frequency_hz': Interval((0.1, 0.5), 0.0, 10.0, 'Hz', lo_open=True),
+        'sweep_s': Interval((40.0, 70.0), 0.0, 1e5, 's', lo_open=True),
+        **_yaw((0.0, 0.2), (6.0, 15.0)),
+    },
+    'melon': {
+        'radius_m': Interval((0.6, 0.8), 0.0, 100.0, 'm'),
+        'lap_hz': Interval((0.25, 0.4), 0.0, 10.0, 'Hz', lo_open=True),
+        'sweep_s': Interval((30.0, 60.0), 0.0, 1e5, 's', lo_open=True),
+        'turn_period_s': Interval((20.0, 40.0), 0.0, 1e5, 's', lo_open=True),
+        **_yaw((0.0, 0.2), (6.0, 15.0)),
+    },
+    'aggressive': {
+        'box_m': Vector((1.1, 1.1, 0.45), 0.0, 100.0, 'm: half-extents north, east, down'),
+        'speed_mps': Interval((1.0, 2.0), 0.0, 50.0, 'm/s', lo_open=True),
+        'min_segment_s': Number(0.5, 0.0, 600.0, 's', lo_open=True),
+        'hop_share': Number(0.4, 0.0, 1.0),
+        'hop_speed_mps': Interval((0.8, 1.2), 0.0, 50.0, 'm/s', lo_open=True),
+        **_yaw((0.3, 0.8), (3.0, 8.0)),
+    },
 }
 
 _SECTIONS = {'operator': OperatorConfig, 'wind': WindConfig, 'waves': WavesConfig,
@@ -637,12 +774,18 @@ def load_simulation(source: str | Path | Mapping | None = None,
         data = {**data, 'vessel': vessel}
     name = data.get('vessel', DEFAULT_VESSEL)
     vessel = _vessel(name, base, label) if isinstance(name, str) else None
-    merged = defaults()
+    flies = vessel is not None and flies_with_rotors(vessel)
+    if vessel is not None and not flies and 'flight' in data:
+        raise ConfigError(f'{label}: flight: the flight controller flies vehicles with rotors; '
+                          f'vessel {vessel.name!r} has none (its operator is the section '
+                          f"'operator'); remove the flight section")
+    schema = {**SCHEMA, 'flight': FLIGHT_SCHEMA} if flies else SCHEMA
+    merged = defaults(schema)
     shipped = vessel_config_path(vessel.name) if vessel is not None else None
     if shipped is not None and shipped.is_file() and not (
             base is not None and shipped.resolve() == Path(source).resolve()):
         merged = _merge(merged, {**read_document(shipped, 'config'), 'vessel': name})
-    values = _validate(_merge(merged, data), SCHEMA, '', label)
+    values = _validate(_merge(merged, data), schema, '', label)
     rate = values['output_rate_hz'] or vessel.rate_hz
     steps = 1.0 / (rate * values['dt'])
     if abs(steps - round(steps)) > 1e-6:
@@ -683,5 +826,16 @@ def load_simulation(source: str | Path | Mapping | None = None,
                                        label),
                      extra_forces=values['extra_forces'],
                      extra_forces_from_s=values['extra_forces_from_s'],
-                     extra_forces_ramp_s=values['extra_forces_ramp_s'], source=label,
+                     extra_forces_ramp_s=values['extra_forces_ramp_s'],
+                     flight=_flight(values['flight']) if flies else None, source=label,
                      **sections)
+
+
+def flies_with_rotors(vessel: Vessel) -> bool:
+    """Whether a flight controller flies the vehicle: it has rotors (a multirotor)."""
+    return any(a.kind == 'rotor' for a in vessel.actuators)
+
+
+def _flight(values: dict) -> FlightConfig:
+    """Return the validated flight section as a FlightConfig."""
+    return FlightConfig(**{**values, 'controller': ControllerConfig(**values['controller'])})

@@ -8,22 +8,32 @@ initial heading, operator, sensor noise) from ``np.random.SeedSequence([seed,
 run_offset + k])``, so a run is the same bit for bit whether it is simulated alone or in a
 batch, and the ROS node (n_runs=1) reproduces the batch tool for the same seed.
 
-Model. The state is the vessel file's: its states z through the water (FRD), then psi
-(NED, unwrapped), x, y (NED, from the run's first sample), then one state per actuator.
-With the physics of the configuration (``config.physics``, any family):
+Model. The state is the vessel file's: its states z through the water (FRD), then its
+pose psi (NED, unwrapped), x, y (NED, from the run's first sample) and, for a 6-DOF
+vehicle, z (down), then one state per actuator. With the physics of the configuration
+(``config.physics``, any family):
 
     z' = physics.derivative(z_water, c, z_ground, waves + extra_forces hook)
 
 where the wind terms of the family feel the ground velocity and are scaled by
 ``wind.force_scale``. Kinematics (``integrator.kinematics``) plus the current give x',
-y', psi' = r cos phi; actuators follow their servos (``actuators``). Outputs are body
-velocities over ground, pose, actuators and, where the vessel measures it, the wind.
+y', psi' = r cos phi; a 6-DOF vehicle's position follows R(phi, theta, psi) (u, v, w)
+(``integrator.body_to_ned``) and its heading ``integrator.attitude_rates`` (roll and
+pitch are states: the family's ``kinematic_rates``). Actuators follow their servos
+(``actuators``). Outputs are body velocities over ground, pose, actuators and, where the
+vessel measures it, the wind.
+
+Operator. A vessel's orders come from the open-loop ``operator``; a vehicle with rotors
+is flown by ``flight.FlightController``, which reads the true state at every output
+instant (warm-up included) and tracks the run's reference trajectory.
 
 Initial condition. Each run starts at a random heading in the steady state of its
 operator's first orders (a Newton solve of the force balance under the wind at the start,
 ``Family.steady``), then runs ``warmup_s`` of simulated time with those orders held so
 that wave, gust and roll transients have died out; the first sample (t = 0, x = y = 0)
-follows.
+follows. A family without a steady state (``steady`` None: the multirotor) starts at
+rest, level, at hover with its actuators at the operator's first orders (the flight
+controller's: hover), and warms up under its operator.
 """
 
 from __future__ import annotations
@@ -33,16 +43,17 @@ from collections.abc import Mapping
 import numpy as np
 
 from vessel_physics.family import ExtraTerm
-from vessel_physics.integrator import kinematics, rk4_step
+from vessel_physics.integrator import attitude_rates, body_to_ned, kinematics, rk4_step
 from vessel_physics.simulation.actuators import servo_rate
 from vessel_physics.simulation.config import SimConfig, load_hook
 from vessel_physics.simulation.current import CurrentField, draw_current
+from vessel_physics.simulation.flight import FlightController
 from vessel_physics.simulation.noise import SensorNoise
 from vessel_physics.simulation.operator import Operator
 from vessel_physics.simulation.waves import WaveField, draw_waves
 from vessel_physics.simulation.wind import WindField, draw_wind
 
-POSE = ('psi', 'x', 'y')
+POSE = ('psi', 'x', 'y')      # a vessel's; a 6-DOF vehicle adds z (Vessel.pose_names)
 # Random streams spawned from SeedSequence([seed, run]): their order is part of the
 # reproducibility contract; add new ones at the end.
 STREAMS = ('wind', 'waves', 'current', 'initial', 'operator', 'noise')
@@ -86,8 +97,11 @@ class Simulator:
         vessel = self.vessel
         self.states = tuple(vessel.state_names)
         self.actuators = tuple(vessel.actuator_names)
-        self.state_names = self.states + POSE + self.actuators
-        self.true_keys = self.states + POSE
+        self.spatial = vessel.is_spatial
+        self.pose = tuple(vessel.pose_names)
+        self.state_names = self.states + self.pose + self.actuators
+        self.true_keys = self.states + self.pose
+        self.flies = config.flight is not None
         self.has_wind = 'wind' in vessel.environment
         wind = ('wind_speed', 'wind_dir_cos', 'wind_dir_sin') if self.has_wind else ()
         self.measured_keys = ('t',) + self.true_keys + self.actuators + wind
@@ -96,7 +110,11 @@ class Simulator:
         self._u, self._v, self._r = (self.states.index(s) for s in ('u', 'v', 'r'))
         self._phi = self.states.index('phi') if 'phi' in self.states else None
         self._psi, self._xpos, self._y = n, n + 1, n + 2
-        self._act = slice(n + 3, n + 3 + len(self.actuators))
+        if self.spatial:
+            self._w, self._p, self._q, self._theta = (self.states.index(s)
+                                                      for s in ('w', 'p', 'q', 'theta'))
+            self._zpos = n + 3
+        self._act = slice(n + len(self.pose), n + len(self.pose) + len(self.actuators))
         self._servos = [config.actuators[a] for a in self.actuators]
         self.reset()
 
@@ -119,7 +137,12 @@ class Simulator:
                                cfg.waves)
         self.current = CurrentField([draw_current(g, cfg.current) for g in rngs['current']])
         psi0 = np.array([g.uniform(0.0, 2 * np.pi) for g in rngs['initial']])
-        self.operator = Operator(rngs['operator'], cfg.operator, self.vessel)
+        if self.flies:
+            self.operator = FlightController(
+                rngs['operator'], cfg.flight, physics, self.vessel,
+                range(self.run_offset, self.run_offset + self.n_runs), psi0)
+        else:
+            self.operator = Operator(rngs['operator'], cfg.operator, self.vessel)
         self.noise = SensorNoise(rngs['noise'], cfg.noise)
         self._wind_on = self.has_wind and cfg.wind.enabled and cfg.wind.force_scale > 0
         # The vessel's force terms; its wind loads at the configured scale (over ground).
@@ -132,16 +155,39 @@ class Simulator:
                                        extra_terms=extra + tuple(physics.extra_terms))
         warmup_steps = int(round(cfg.warmup_s / cfg.dt))
         self._t = -warmup_steps * cfg.dt
-        self._command = self.operator.setpoints(min(self._t, 0.0))
-        self._x = self._steady_state(psi0, self._t)
+        if family.steady is None:
+            self._x = self._at_rest(psi0, min(self._t, 0.0))
+        else:
+            self._command = self.operator.setpoints(min(self._t, 0.0))
+            self._x = self._steady_state(psi0, self._t)
+        steps = cfg.steps_per_sample
         for i in range(warmup_steps):
+            if self.flies and i and i % steps == 0:      # a closed loop acts in warm-up too
+                self._command = self._orders(self._t + i * cfg.dt)
             self._step(self._t + i * cfg.dt)
         # Put the first sample at x = y = 0; shifting the wave phases keeps the sea in place.
         self.waves.shift_origin(self._x[:, self._xpos], self._x[:, self._y])
         self._x[:, [self._xpos, self._y]] = 0.0
+        if self.spatial:
+            self._x[:, self._zpos] = 0.0
         self._t = 0.0
         self._k = 0
         self._sample = None
+
+    def _at_rest(self, psi0: np.ndarray, t: float) -> np.ndarray:
+        """Return the initial state at rest, level, at heading psi0, actuators at the orders."""
+        x = np.zeros((self.n_runs, len(self.state_names)))
+        x[:, self._psi] = psi0
+        self._x = x
+        self._command = self._orders(t)
+        x[:, self._act] = np.stack(self._command, axis=-1)
+        return x
+
+    def _orders(self, t: float) -> tuple[np.ndarray, ...]:
+        """Return the operator's orders at time t (a flight controller reads the true state)."""
+        if self.flies:
+            return self.operator.setpoints(t, self.state)
+        return self.operator.setpoints(t, self._x[:, self._psi])
 
     def _steady_state(self, psi0: np.ndarray, t: float) -> np.ndarray:
         """Return the initial state: steady motion under the first orders and wind at t."""
@@ -226,7 +272,12 @@ class Simulator:
             extra = hook if extra is None else extra + hook
         dx = np.empty_like(x)
         dx[:, :n] = self.physics.derivative(z_water, c, z_ground, extra)
-        north, east, dx[:, self._psi] = kinematics(u, v, r, phi, psi)
+        if self.spatial:
+            w, theta = x[:, self._w], x[:, self._theta]
+            north, east, dx[:, self._zpos] = body_to_ned(u, v, w, phi, theta, psi)
+            dx[:, self._psi] = attitude_rates(x[:, self._p], x[:, self._q], r, phi, theta)[2]
+        else:
+            north, east, dx[:, self._psi] = kinematics(u, v, r, phi, psi)
         if self.current.active:
             c_north, c_east = self.current.ned(t)
             north, east = north + c_north, east + c_east
@@ -245,7 +296,7 @@ class Simulator:
         c_north, c_east = self.current.ned(t)
         state = {name: z_ground[:, i].copy() for i, name in enumerate(self.states)}
         state['u_water'], state['v_water'] = x[:, self._u].copy(), x[:, self._v].copy()
-        for key in POSE:
+        for key in self.pose:
             state[key] = x[:, self.state_names.index(key)].copy()
         controls = {name: x[:, self._act.start + j].copy()
                     for j, name in enumerate(self.actuators)}
@@ -268,6 +319,12 @@ class Simulator:
         return weight * extra
 
     # ------------------------------------------------------------------ public API
+    @property
+    def command(self) -> dict[str, np.ndarray]:
+        """Return the set-points in force since the last sample, by actuator (arrays)."""
+        return {name: np.array(c, dtype=float) for name, c in
+                zip(self.actuators, self._command, strict=True)}
+
     @property
     def t(self) -> float:
         """Return the simulation time of the current sample (s)."""
@@ -327,9 +384,10 @@ class Simulator:
 
         ``command`` (optional) maps actuator names to set-points (scalars or arrays
         (n_runs,), the vessel file's units) that override the operator's for this
-        period. The operator's random stream advances either way.
+        period. The operator's random stream advances either way (a flight controller
+        computes its orders either way).
         """
-        orders = list(self.operator.setpoints(self._t, self._x[:, self._psi]))
+        orders = list(self._orders(self._t))
         if command is not None:
             for key in command:
                 if key not in self.actuators:
