@@ -9,6 +9,11 @@ docs/conventions.md); ``sim_messages`` turns it into the messages the simulator
 publishes (ENU/FLU, through ``vessel_physics.frames``), and ``write_bag`` records them
 as a rosbag2 MCAP directory the way the recorder does. Converting such a bag must give
 the trajectory back, which tests the whole chain without a simulator.
+
+``write_simulated_bag`` records a batch simulator run of any vehicle as the simulator
+node publishes it: its vessel file's topic map written by ``topic_messages.MessageWriter``
+into rosbags' message classes (``default_message``), so converting the bag tests the
+node's writer and the converter against each other.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from rosbags.interfaces import Nodetype
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 from rosbags.typesys.store import Typestore
@@ -30,6 +36,8 @@ from vessel_physics import frames
 from vessel_physics.simulation.config import DEFAULT_VESSEL
 
 from .format import TRUE_SUFFIX
+from .topic_map import topic_map_for
+from .topic_messages import MessageWriter, channel_values
 
 SIM_VESSEL = DEFAULT_VESSEL  # the vessel whose topics the simulator publishes by default
 SIM_TOPICS = {
@@ -49,7 +57,7 @@ def simulation_vessel(config) -> Vessel:
 
 def simulated_run_table(data: dict, j: int, vessel: Vessel) -> pd.DataFrame:
     """Run ``j`` of a batch simulator result as a dataset table, noise-free truth included."""
-    truth = vessel.state_names + ('psi', 'x', 'y')
+    truth = vessel.state_names + vessel.pose_names
     columns = vessel.dataset_columns + tuple(k + TRUE_SUFFIX for k in truth)
     return pd.DataFrame({c: data[c][j] for c in columns})
 
@@ -149,4 +157,56 @@ def write_bag(path: str | os.PathLike, traj: Trajectory, store: Typestore | None
         serialize = store.serialize_cdr
         for topic, ns, msg in sim_messages(traj, store):
             w.write(conns[topic], ns + log_delay_ns, serialize(msg, SIM_TOPICS[topic]))
+    return path
+
+
+def default_message(store: Typestore, msgtype: str):
+    """Return a rosbags message of ``msgtype`` with every field zero or empty."""
+    _, fields = store.fielddefs[msgtype]
+    return store.types[msgtype](**{name: _default_field(store, node, detail)
+                                   for name, (node, detail) in fields})
+
+
+def _default_field(store: Typestore, node, detail):
+    if node == Nodetype.BASE:
+        kind = detail[0]
+        return '' if kind == 'string' else False if kind == 'bool' else \
+            0.0 if kind.startswith('float') else 0
+    if node == Nodetype.NAME:
+        return default_message(store, detail)
+    (sub_node, sub_detail), length = detail
+    size = length if node == Nodetype.ARRAY else 0
+    if sub_node == Nodetype.BASE and sub_detail[0] not in ('string', 'bool'):
+        return np.zeros(size, dtype=np.dtype(sub_detail[0].replace('byte', 'uint8')
+                                             .replace('char', 'uint8')))
+    return [_default_field(store, sub_node, sub_detail) for _ in range(size)]
+
+
+def write_simulated_bag(path: str | os.PathLike, data: dict, j: int, vessel: Vessel,
+                        store: Typestore | None = None, start_ns: int = DEFAULT_START_NS,
+                        log_delay_ns: int = DEFAULT_LOG_DELAY_NS) -> Path:
+    """
+    Record run ``j`` of a batch simulator result (``Simulator.run``) as the node would.
+
+    The topics, types and fields of the vessel file's ``recordings.topics``, written
+    with ``MessageWriter`` from the measured columns; stamps ``start_ns`` + t.
+    """
+    store = store or get_typestore(Stores.ROS2_JAZZY)
+    topic_map = topic_map_for(vessel)
+    msgtypes = {e.topic: e.msgtype for e in topic_map.entries if e.msgtype}
+    writer = MessageWriter(topic_map, {topic: (lambda m=msgtype: default_message(store, m))
+                                       for topic, msgtype in msgtypes.items()})
+    Time = store.types['builtin_interfaces/msg/Time']
+    path = Path(path)
+    with Writer(path, version=Writer.VERSION_LATEST, storage_plugin=StoragePlugin.MCAP) as w:
+        conns = {topic: w.add_connection(topic, msgtypes[topic], typestore=store)
+                 for topic in writer.topics}
+        for i in range(data['t'].shape[1]):
+            sample = {key: float(values[j, i]) for key, values in data.items()}
+            ns = start_ns + round(sample['t'] * 1e9)
+            stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+            channels = channel_values(sample, topic_map)
+            for topic in writer.topics:
+                msg = writer.message(topic, channels, stamp)
+                w.write(conns[topic], ns + log_delay_ns, store.serialize_cdr(msg, msgtypes[topic]))
     return path

@@ -5,18 +5,20 @@ A topic map's messages, read and written: channels from a message, messages from
 fields (the predictor's inputs, the simulator's commands).
 
 Writing is the inverse of conversion (``quantities``), from a vessel's state in the
-model's frames to the messages its topic map names.
-The inverse of conversion (``quantities``): a simulator of any vessel publishes what the
-vessel's own sensors would, on the topics, fields, frames and scales of its vessel
-file's ``recordings.topics`` (docs/bags.md), so the predictor and the converter read it
-like recordings of the real vessel. Where an entry lists alternatives the first is
-written. Entries only recordings can carry (latitude/longitude, earth-frame
-velocities, a wind speed and angle, speed over ground) are refused in one line.
+model's frames to the messages its topic map names: a simulator of any vessel publishes
+what the vessel's own sensors would, on the topics, fields, frames and scales of its
+vessel file's ``recordings.topics`` (docs/bags.md), so the predictor and the converter
+read it like recordings of the real vessel. A 6-DOF vehicle's messages carry the third
+components too: heave, pitch rate and pitch, the height (``quantities.to_spatial_columns``
+read backwards). Where an entry lists alternatives the first is written. Entries only
+recordings can carry (latitude/longitude, earth-frame velocities, a wind speed and
+angle, speed over ground) are refused in one line.
 
 ``MessageWriter(topic_map, types)`` builds one message per topic from a sample (a
-mapping of the vessel's dataset columns: u, v, [p, r, phi], psi, x, y, actuators, wind)
-with any message classes that have the mapped fields (rclpy's, rosbags'); frame ids are
-the world frame for messages that carry a pose, the body frame otherwise.
+mapping of the vessel's dataset columns: u, v, [w], [p], [q], r, [phi], [theta], psi, x,
+y, [z], actuators, wind) with any message classes that have the mapped fields (rclpy's,
+rosbags'); frame ids are the world frame for messages that carry a pose, the body frame
+otherwise.
 """
 
 from __future__ import annotations
@@ -28,14 +30,16 @@ from vessel_physics import frames
 from .fields import compile_getter, pad_named, set_path
 from .topic_map import ACTUATOR_PREFIX, TopicMap, TopicMapError
 
-WRITABLE = {'body_velocity': ('surge', 'sway', 'roll_rate', 'yaw_rate'),
-            'attitude': ('quaternion', 'heading', 'roll'), 'position': ('point', 'x', 'y'),
-            'wind': ('velocity',)}
+WRITABLE = {'body_velocity': ('surge', 'sway', 'heave', 'roll_rate', 'pitch_rate', 'yaw_rate'),
+            'attitude': ('quaternion', 'heading', 'roll', 'pitch'),
+            'position': ('point', 'x', 'y', 'z'), 'wind': ('velocity',)}
 POSE_GROUPS = ('position', 'attitude')
 
 
 def channel_values(sample: Mapping[str, float], topic_map: TopicMap) -> dict[str, float]:
     """Every channel of the map in the messages' frames and units (before scale/offset)."""
+    if topic_map.vessel.is_spatial:
+        return spatial_channel_values(sample, topic_map)
     out: dict[str, float] = {}
     u, v, r = sample['u'], sample['v'], sample['r']
     p, phi = sample.get('p', 0.0), sample.get('phi', 0.0)
@@ -63,6 +67,33 @@ def channel_values(sample: Mapping[str, float], topic_map: TopicMap) -> dict[str
         if topic_map.frames['wind'] == 'frd':
             wx, wy, _ = frames.body_flu_to_frd(wx, wy)
         out['wind_x'], out['wind_y'] = wx, wy
+    return {k: float(x) for k, x in out.items()}
+
+
+def spatial_channel_values(sample: Mapping[str, float], topic_map: TopicMap
+                           ) -> dict[str, float]:
+    """``channel_values`` of a 6-DOF vehicle: all three components of each quantity."""
+    velocity = (sample['u'], sample['v'], sample['w'])
+    rates = (sample['p'], sample['q'], sample['r'])
+    if topic_map.frames['body_velocity'] == 'flu':
+        velocity, rates = frames.body_frd_to_flu(*velocity), frames.body_frd_to_flu(*rates)
+    out = dict(zip(('surge', 'sway', 'heave', 'roll_rate', 'pitch_rate', 'yaw_rate'),
+                   (*velocity, *rates), strict=True))
+    phi, theta, psi = sample['phi'], sample['theta'], sample['psi']
+    if topic_map.frames['attitude'] == 'enu_flu':     # pitch turns about FLU's y: -theta
+        q = frames.orientation_ned_to_enu(phi, psi, theta)
+        out['heading'], out['pitch'] = frames.heading_ned_to_enu(psi), -theta
+    else:
+        q = frames.quaternion_from_euler(phi, theta, psi)
+        out['heading'], out['pitch'] = psi, theta
+    out.update(zip(('qx', 'qy', 'qz', 'qw'), (float(x) for x in q), strict=True))
+    out['roll'] = phi
+    point = (sample['x'], sample['y'], sample['z'])
+    if topic_map.frames['position'] == 'enu':
+        point = frames.position_ned_to_enu(*point)
+    out['pos_x'], out['pos_y'], out['pos_z'] = point
+    for name in topic_map.vessel.actuator_names:
+        out[ACTUATOR_PREFIX + name] = sample[name]
     return {k: float(x) for k, x in out.items()}
 
 
