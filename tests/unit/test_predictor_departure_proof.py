@@ -65,9 +65,9 @@ def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> li
             """Return the forecast from the window ending at sample i, as the node re-makes it."""
             hybrid = engine.forecast(z[i + 1 - window:i + 1], c[i + 1 - window:i + 1],
                                      applied_future(applied, horizon)).hybrid
-            north, east, _ = track(hybrid, tuple(pose[i]), spec)
+            path = track(hybrid, tuple(pose[i]), spec)
             lower, upper, radius = engine.bands.bounds(hybrid)
-            return Remade(hybrid[0], north[0], east[0], engine.bands.levels, lower[0],
+            return Remade(hybrid[0], path.north[0], path.east[0], engine.bands.levels, lower[0],
                           upper[0], radius)
 
         hindsight = Hindsight(live_skill(spec, horizon, p), remake)

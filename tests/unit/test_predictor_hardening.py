@@ -141,3 +141,39 @@ def test_a_forecast_outside_the_limits_or_not_finite_is_withheld():
     assert 'u reaches 7e+14, outside the vessel limits [-3, 12]' in \
         forecast_problem(absurd, track, BOAT)
     assert forecast_problem(good, (np.full(900, np.nan),) * 3, BOAT) == 'non-finite values'
+
+
+QUAD_TOPICS = {
+    'body_velocity': {'frame': 'flu', **{name: {'topic': '/quad/odom', 'field': field}
+                                         for name, field in (
+        ('surge', 'twist.twist.linear.x'), ('sway', 'twist.twist.linear.y'),
+        ('heave', 'twist.twist.linear.z'), ('roll_rate', 'twist.twist.angular.x'),
+        ('pitch_rate', 'twist.twist.angular.y'), ('yaw_rate', 'twist.twist.angular.z'))}},
+    'attitude': {'frame': 'enu_flu',
+                 'quaternion': {'topic': '/quad/odom', 'field': 'pose.pose.orientation'}},
+    'position': {'frame': 'enu', 'point': {'topic': '/quad/odom', 'field': 'pose.pose.position'}},
+    'actuators': {f'm{i}': {'topic': '/quad/rotors', 'field': f'velocity[m{i}]'}
+                  for i in range(1, 5)},
+}
+
+
+def test_a_six_dof_vehicles_heave_pitch_rate_and_pitch_are_held_to_its_limits():
+    from vessel_datasets.topic_map import parse_topic_map
+    from vessel_physics import frames
+
+    quad = load_vessel('crazyflie_brushless')
+    check = Plausibility(parse_topic_map(QUAD_TOPICS, quad), quaternion_tolerance=0.01).check
+    assert check('/quad/odom', {'heave': 5.9, 'pitch_rate': 29.0}, 'odom') is None
+    # FLU heave up 7 m/s is w = -7 in FRD, below the limit -6.
+    reason, text = check('/quad/odom', {'heave': 7.0}, 'odom')
+    assert reason == 'implausible' and text.startswith('/quad/odom: w = -7')
+    reason, text = check('/quad/odom', {'pitch_rate': -31.0}, 'odom')
+    assert reason == 'implausible' and 'q = 31' in text
+    # An orientation pitched 1.5 rad nose up (FRD theta; limits +-1.45) is absurd.
+    q = dict(zip(('qx', 'qy', 'qz', 'qw'), frames.orientation_ned_to_enu(0.0, 0.3, 1.5),
+                 strict=True))
+    reason, text = check('/quad/odom', q, 'odom')
+    assert reason == 'implausible' and 'theta = 1.5' in text
+    q = dict(zip(('qx', 'qy', 'qz', 'qw'), frames.orientation_ned_to_enu(0.2, 0.3, 1.2),
+                 strict=True))
+    assert check('/quad/odom', q, 'odom') is None

@@ -193,11 +193,21 @@ def test_hold_latest_repeats_the_last_controls():
 def test_track_is_the_metric_track_rotated_and_shifted_to_the_pose():
     states = np.zeros((H, 5))
     states[:, 0] = 2.0   # straight ahead at u (the metric's heading 0 is north)
-    north, east, heading = track(states, (100.0, 50.0, math.pi / 2),
-                                 load_vessel('patrol_boat'))
-    np.testing.assert_allclose(north, 100.0, atol=1e-12)      # heading east
-    np.testing.assert_allclose(east, 50.0 + 2.0 * np.arange(1, H + 1))
-    np.testing.assert_allclose(heading, math.pi / 2)
+    path = track(states, (100.0, 50.0, math.pi / 2), load_vessel('patrol_boat'))
+    np.testing.assert_allclose(path.north, 100.0, atol=1e-12)      # heading east
+    np.testing.assert_allclose(path.east, 50.0 + 2.0 * np.arange(1, H + 1))
+    np.testing.assert_allclose(path.heading, math.pi / 2)
+    assert path.down is None                                      # a vessel in the plane
+
+
+def test_a_six_dof_track_climbs_from_the_windows_height():
+    quad = load_vessel('crazyflie_brushless')
+    states = np.zeros((100, 8))
+    states[:, 0], states[:, 2] = 1.0, -0.5    # forward 1 m/s, climbing 0.5 m/s (z down)
+    path = track(states, (3.0, 4.0, 0.0, -1.5), quad)
+    np.testing.assert_allclose(path.north, 3.0 + 0.01 * np.arange(1, 101))
+    np.testing.assert_allclose(path.east, 4.0, atol=1e-12)
+    np.testing.assert_allclose(path.down, -1.5 - 0.005 * np.arange(1, 101))
 
 
 def test_bound_hits_count_corrections_at_the_bound():

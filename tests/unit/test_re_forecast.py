@@ -69,7 +69,7 @@ def forecast_message(run, hybrid_flu, x, y, **fields):
     """Return a Forecast as the node publishes it (the fields re_forecast reads)."""
     msg = SimpleNamespace(
         header=SimpleNamespace(stamp=m.stamp_from_seconds(START + T_END)), horizon=HORIZON,
-        state_names=list(run.vessel.state_names), hybrid=np.ravel(hybrid_flu), x=x, y=y,
+        state_names=list(run.vessel.state_names), hybrid=np.ravel(hybrid_flu), x=x, y=y, z=[],
         controls_assumed=Forecast.CONTROLS_PLAN, plan_id='p1',
         plan_stamp=m.stamp_from_seconds(START),
         model_id=run.engine.model_id, relative_threshold=0.15)
@@ -91,7 +91,7 @@ def test_the_offline_window_and_plan_are_the_datasets_for_the_same_run(run):
     future[:, :3] = run.plan[T_END:T_END + HORIZON]
     expected = forecast_holding_wind(run.engine, z, c, future[None], [True])[0].hybrid[0]
 
-    hybrid, x, y = kept(run).offline(forecast_message(run, 0, 0, 0))
+    hybrid, x, y, _ = kept(run).offline(forecast_message(run, 0, 0, 0))
     frd = frames.states_flu_to_frd(hybrid, spec.state_names)
     scale = np.abs(expected).max(axis=0) + 1e-3
     assert np.max(np.abs(frd - expected) / scale) < 1e-5
@@ -100,7 +100,7 @@ def test_the_offline_window_and_plan_are_the_datasets_for_the_same_run(run):
 
 def test_a_forecast_equal_to_its_re_forecast_and_one_that_is_not(run):
     re_forecast = kept(run)
-    hybrid, x, y = re_forecast.offline(forecast_message(run, 0, 0, 0))
+    hybrid, x, y, _ = re_forecast.offline(forecast_message(run, 0, 0, 0))
     same = forecast_message(run, hybrid, x, y)
     changed = hybrid.copy()
     changed[HORIZON // 2, 1] += 1e-3   # v, m/s

@@ -104,10 +104,11 @@ def forecasts(engine, d, spec, plans, starts, horizon):
                 out.setdefault(name, []).append(
                     (k, te, trajectory_errors(pred[None], true[None], spec)[0]))
                 if name == 'demo':   # the demo's own error: published track vs truth
-                    north, east, _ = track(pred, (d['x'][k, te], d['y'][k, te],
-                                                  d['psi'][k, te]), spec)
-                    over_ground = np.hypot(north - d['x_true'][k, te + 1:te + 1 + horizon],
-                                           east - d['y_true'][k, te + 1:te + 1 + horizon])
+                    path = track(pred, (d['x'][k, te], d['y'][k, te], d['psi'][k, te]),
+                                 spec)
+                    over_ground = np.hypot(
+                        path.north - d['x_true'][k, te + 1:te + 1 + horizon],
+                        path.east - d['y_true'][k, te + 1:te + 1 + horizon])
                     out.setdefault('demo_over_ground', []).append((k, te, over_ground))
     return out
 

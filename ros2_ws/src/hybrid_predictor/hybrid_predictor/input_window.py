@@ -37,8 +37,13 @@ from vessel_datasets.topic_map import TopicMap
 
 from .time_line import ReAnchor, TimeLines
 
-POSE = ('x', 'y', 'psi')
+POSE = ('x', 'y', 'psi')   # and z, for a 6-DOF vehicle (``pose_columns``)
 STATE_ENTRY = 'surge'  # its topic's newest sample ends the window
+
+
+def pose_columns(vessel) -> tuple[str, ...]:
+    """Return the pose a window reports: x, y, psi, and z for a 6-DOF vehicle."""
+    return POSE + (('z',) if vessel.is_spatial else ())
 
 
 @dataclass
@@ -189,8 +194,9 @@ class Window:
     age: float | None      # now - t_end (s)
     states: np.ndarray | None = None     # (window, n_state) in the vessel's state order
     controls: np.ndarray | None = None   # (window, n_control) in its control order
-    pose: tuple[float, float, float] | None = None  # x, y (m, NED), psi (rad) at t_end
-    poses: np.ndarray | None = None      # (window, 3) x, y (m, NED), psi (rad) per row
+    # x, y (m, NED), psi (rad) at t_end, and z (m, NED) for a 6-DOF vehicle
+    pose: tuple[float, ...] | None = None
+    poses: np.ndarray | None = None      # (window, 3 or 4) the same per row
 
 
 class InputWindow:
@@ -394,7 +400,7 @@ class InputWindow:
         columns = self._columns(grid)
         states = np.column_stack([columns[c] for c in self.vessel.state_names])
         controls = np.column_stack([columns[c] for c in self.vessel.control_names])
-        poses = np.column_stack([columns[c] for c in POSE])
+        poses = np.column_stack([columns[c] for c in pose_columns(self.vessel)])
         return Window(True, 'ok', '', fill, t_end, age, states, controls,
                       tuple(float(v) for v in poses[-1]), poses)
 

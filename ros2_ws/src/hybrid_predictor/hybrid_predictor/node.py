@@ -552,7 +552,8 @@ class PredictorNode(Node):
 
     def _withheld(self, hybrid: np.ndarray, msg: Forecast) -> str | None:
         return forecast_problem(hybrid, (np.asarray(msg.x), np.asarray(msg.y),
-                                         np.asarray(msg.heading)), self.spec)
+                                         np.asarray(msg.heading), np.asarray(msg.z)),
+                                self.spec)
 
     def _forecast_messages(self, result, hybrid: np.ndarray, physics: np.ndarray,
                            assumed: list[Assumed], stride: int = 1) -> list[Forecast]:
@@ -562,10 +563,11 @@ class PredictorNode(Node):
         ``stride`` > 1 keeps the steps ending at every ``stride`` steps (a what-if
         request's answer_period; ``plans.answer_steps``) in every array.
         """
-        north, east, psi = track(hybrid, result.pose, self.spec)   # one pass, all plans
+        path = track(hybrid, result.pose, self.spec)   # one pass, all plans
         keep = answer_steps(self.horizon, stride)
-        x_enu, y_enu, _ = frames.position_ned_to_enu(north[..., keep], east[..., keep])
-        heading = frames.heading_ned_to_enu(psi[..., keep])
+        x_enu, y_enu, _ = frames.position_ned_to_enu(path.north[..., keep], path.east[..., keep])
+        z_enu = None if path.down is None else -path.down[..., keep]
+        heading = frames.heading_ned_to_enu(path.heading[..., keep])
         names = self.spec.state_names
         hybrid_flu = frames.states_frd_to_flu(hybrid[:, keep], names)
         physics_flu = frames.states_frd_to_flu(physics[:, keep], names)
@@ -591,6 +593,8 @@ class PredictorNode(Node):
             msg.residual_bound = doubles(self.engine.bound)
             msg.x, msg.y, msg.heading = doubles(x_enu[i]), doubles(y_enu[i]), doubles(
                 heading[i])
+            if z_enu is not None:
+                msg.z = doubles(z_enu[i])
             msg.band_note = self.engine.bands_note
             if self.bands is not None:
                 msg.band_levels = list(self.bands.levels)
@@ -618,6 +622,8 @@ class PredictorNode(Node):
             pose.header.frame_id = forecast.header.frame_id
             pose.header.stamp = messages.stamp_from_seconds(t0 + (k + 1) * forecast.step_period)
             pose.pose.position.x, pose.pose.position.y = x, y
+            if len(forecast.z):
+                pose.pose.position.z = forecast.z[k]
             pose.pose.orientation.z = math.sin(yaw / 2)
             pose.pose.orientation.w = math.cos(yaw / 2)
             path.poses.append(pose)

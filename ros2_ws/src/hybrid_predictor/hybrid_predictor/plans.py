@@ -275,22 +275,32 @@ def plan_controls(matrix: np.ndarray, latest_control: np.ndarray) -> np.ndarray:
     return np.where(np.isnan(matrix), latest_control, matrix)
 
 
-def track(states: np.ndarray, pose: tuple[float, float, float], spec,
-          ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class Track:
+    """A forecast's track per step: north, east (m, NED), heading (rad); down for 6-DOF."""
+
+    north: np.ndarray
+    east: np.ndarray
+    heading: np.ndarray
+    down: np.ndarray | None = None   # m, NED; None for a vessel in the plane
+
+
+def track(states: np.ndarray, pose: tuple[float, ...], spec) -> Track:
     """
-    Return the forecast track: north, east (m, NED) and heading (rad) per step.
+    Return the forecast track from the window's pose: (x, y, psi) or, 6-DOF, (x, y, psi, z).
 
     ``hybrid_models.metrics.dead_reckoning`` integrates the track from the origin with
-    heading 0, as the trajectory error does; starting from ``pose`` = (x, y, psi)
-    instead only rotates that track by psi and shifts it, so the published track is
-    exactly what the trajectory error measures. ``spec`` is the model's vessel.
+    heading 0, as the trajectory error does; starting from ``pose`` instead only rotates
+    that track by psi about the vertical and shifts it, so the published track is
+    exactly what the trajectory error measures. ``spec`` is the model's vehicle.
     """
-    x0, y0, psi0 = pose
-    local, heading = dead_reckoning(states, spec)   # (..., H, 2) north, east; (..., H)
+    x0, y0, psi0 = pose[:3]
+    local, heading = dead_reckoning(states, spec)   # (..., H, 2 or 3) north, east[, down]
     cos_p, sin_p = math.cos(psi0), math.sin(psi0)
     north = x0 + cos_p * local[..., 0] - sin_p * local[..., 1]
     east = y0 + sin_p * local[..., 0] + cos_p * local[..., 1]
-    return north, east, psi0 + heading
+    down = pose[3] + local[..., 2] if spec.is_spatial else None
+    return Track(north, east, psi0 + heading, down)
 
 
 def bound_hit_fraction(hybrid: np.ndarray, physics: np.ndarray, bound: np.ndarray,

@@ -4,9 +4,10 @@ Physical plausibility of one input sample, from the vessel description (no ROS).
 A finite value can still be absurd (a surge of 10^6 m/s, a quaternion of norm 7). Each
 sample is checked, in the model's quantities, against what the vessel file declares:
 
-- body velocities (surge, sway, roll and yaw rate, turned into FRD ``u, v, p, r`` by
-  ``vessel_physics.frames``) and the roll angle ``phi`` against ``limits`` of the
-  vessel file ("plausible ranges of the states; samples outside are spikes");
+- body velocities (surge, sway, heave, roll, pitch and yaw rate, turned into FRD
+  ``u, v, w, p, q, r`` by ``vessel_physics.frames``) and the roll and pitch angles
+  ``phi``, ``theta`` against ``limits`` of the vessel file ("plausible ranges of the
+  states; samples outside are spikes");
 - every actuator against its declared ``range`` (shaft speed, rudder angles);
 - the measured wind speed against ``limits.wind_speed`` where the vessel file gives it;
 - an orientation quaternion must have unit norm within ``quaternion_tolerance``;
@@ -31,9 +32,10 @@ from vessel_description import VesselError
 from vessel_physics import frames
 
 QUATERNION = ('qx', 'qy', 'qz', 'qw')
-# Channels of a body-velocity group, in the argument order of frames.twist_flu_to_frd,
-# and the FRD state each becomes.
-BODY_CHANNELS = (('surge', 'u'), ('sway', 'v'), ('roll_rate', 'p'), ('yaw_rate', 'r'))
+# Channels of a body-velocity group, the FRD state each becomes, and its sign from FLU
+# (frames.body_flu_to_frd: y and z change sign).
+BODY_CHANNELS = (('surge', 'u', 1.0), ('sway', 'v', -1.0), ('heave', 'w', -1.0),
+                 ('roll_rate', 'p', 1.0), ('pitch_rate', 'q', -1.0), ('yaw_rate', 'r', -1.0))
 # Groups whose values mean nothing without the frame they are given in.
 FRAMED_GROUPS = ('body_velocity', 'attitude', 'position', 'wind')
 
@@ -51,21 +53,23 @@ class Plausibility:
         self.quaternion_tolerance = quaternion_tolerance
         # channel -> (sign to the model's frame, model quantity, low, high)
         self.bounds: dict[str, tuple[float, str, float, float]] = {}
-        if topic_map.frames.get('body_velocity') == 'flu':
-            signs = frames.twist_flu_to_frd(1.0, 1.0, 1.0, 1.0)
-        else:
-            signs = (1.0, 1.0, 1.0, 1.0)
-        for (channel, state), sign in zip(BODY_CHANNELS, signs, strict=True):
+        flu = topic_map.frames.get('body_velocity') == 'flu'
+        for channel, state, sign in BODY_CHANNELS:
             if state in vessel.states:
-                self.bounds[channel] = (sign, state, *vessel.limits[state])
+                self.bounds[channel] = (sign if flu else 1.0, state, *vessel.limits[state])
+        self.enu = topic_map.frames.get('attitude') == 'enu_flu'
         if vessel.has_roll:
             self.bounds['roll'] = (1.0, 'phi', *vessel.limits['phi'])
+        if vessel.is_spatial:   # FLU pitch turns about the axis FRD reverses
+            self.bounds['pitch'] = (-1.0 if self.enu else 1.0, 'theta',
+                                    *vessel.limits['theta'])
         for actuator in vessel.actuators:
             self.bounds[ACTUATOR_PREFIX + actuator.name] = (
                 1.0, actuator.name, actuator.low, actuator.high)
-        self.roll_limits = vessel.limits['phi'] if vessel.has_roll else None
+        # Angles a quaternion gives, with their limits: roll, and pitch for 6-DOF.
+        self.angle_limits = {k: vessel.limits[name] for k, name in ((0, 'phi'), (1, 'theta'))
+                             if name in vessel.states}
         self.wind_speed_limits = vessel.limits.get('wind_speed')
-        self.enu = topic_map.frames.get('attitude') == 'enu_flu'
         self.framed_topics = {leaf.topic for leaf in topic_map.leaves()
                               if leaf.group in FRAMED_GROUPS}
 
@@ -105,15 +109,16 @@ class Plausibility:
         if not abs(norm - 1.0) <= self.quaternion_tolerance:
             return 'bad_quaternion', (f'{topic}: orientation quaternion has norm {norm:.6g}, '
                                       f'not 1 +- {self.quaternion_tolerance:g}')
-        if self.roll_limits is None:
+        if not self.angle_limits:
             return None
         unit = [c / norm for c in q]
         convert = frames.orientation_enu_to_ned if self.enu else frames.euler_from_quaternion
-        phi = float(convert(*unit)[0])
-        low, high = self.roll_limits
-        if not low <= phi <= high:
-            return 'implausible', (f'{topic}: phi = {phi:.6g} outside the vessel limits '
-                                   f'[{low:g}, {high:g}]')
+        angles = convert(*unit)
+        for k, (low, high) in self.angle_limits.items():
+            value = float(angles[k])
+            if not low <= value <= high:
+                return 'implausible', (f'{topic}: {("phi", "theta")[k]} = {value:.6g} outside '
+                                       f'the vessel limits [{low:g}, {high:g}]')
         return None
 
 
@@ -129,7 +134,7 @@ def forecast_problem(hybrid: np.ndarray, track: tuple[np.ndarray, ...], vessel) 
     Return why a forecast must be withheld, or None.
 
     ``hybrid`` is (..., horizon, n_state) in the vessel's state order; ``track`` the
-    trajectory arrays (x, y, heading). Every value must be finite and every state inside
+    trajectory arrays (x, y, heading[, z]). Every value must be finite and every state inside
     the vessel's ``limits`` (the same plausible ranges the inputs are held to).
     """
     if not np.isfinite(hybrid).all() or not all(np.isfinite(a).all() for a in track):

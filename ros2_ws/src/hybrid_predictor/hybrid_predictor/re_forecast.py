@@ -165,9 +165,11 @@ class ReForecast:
         return plan_controls(rows, latest)[None], holds_wind(self.spec, rows)
 
     def offline(self, forecast, arrival_slack: float = 0.0
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """
-        Recompute a Forecast message offline; return hybrid (H, n) FLU, x, y (m, ENU).
+        Recompute a Forecast message offline; return hybrid (H, n) FLU, x, y, z (m, ENU).
+
+        z is the height of a 6-DOF vehicle's track, zeros for a vessel in the plane.
 
         ``arrival_slack`` (s): how much later than the kept time the node may have stamped
         a sample (messages without a header, timed here when sent); 0 for stamped ones.
@@ -192,13 +194,14 @@ class ReForecast:
         future, held = self.future(forecast, result)
         hybrid = forecast_holding_wind(self.engine, result.states, result.controls, future,
                                        [held])[0].hybrid
-        north, east, _ = track(hybrid, result.pose, self.spec)
-        x, y, _ = frames.position_ned_to_enu(north[0], east[0])
-        return frames.states_frd_to_flu(hybrid[0], self.spec.state_names), x, y
+        path = track(hybrid, result.pose, self.spec)
+        x, y, _ = frames.position_ned_to_enu(path.north[0], path.east[0])
+        z = np.zeros_like(x) if path.down is None else -path.down[0]
+        return frames.states_frd_to_flu(hybrid[0], self.spec.state_names), x, y, z
 
     def difference(self, forecast, arrival_slack: float = 0.0) -> Difference:
         """Return live minus offline for one Forecast message (``Difference``)."""
-        offline, x, y = self.offline(forecast, arrival_slack)
+        offline, x, y, z = self.offline(forecast, arrival_slack)
         names = list(forecast.state_names)
         if names != list(self.spec.state_names):
             raise ReForecastError(f"forecast states {names}, the model's "
@@ -206,7 +209,9 @@ class ReForecast:
         live = np.reshape(np.asarray(forecast.hybrid, float), offline.shape)
         gap = np.abs(live - offline).max(axis=0)
         scale = np.abs(offline).max(axis=0) + 1e-3
-        position = float(np.hypot(np.asarray(forecast.x) - x, np.asarray(forecast.y) - y).max())
+        live_z = np.asarray(forecast.z) if len(forecast.z) else np.zeros_like(z)
+        position = float(np.sqrt((np.asarray(forecast.x) - x) ** 2
+                                 + (np.asarray(forecast.y) - y) ** 2 + (live_z - z) ** 2).max())
         return Difference(seconds_from_stamp(forecast.header.stamp),
                           dict(zip(names, gap.tolist(), strict=True)),
                           dict(zip(names, (gap / scale).tolist(), strict=True)), position)
