@@ -254,11 +254,14 @@ stage_rostools() {
 }
 
 # --- stage: the bench-only environment of peer models ---------------------------------
-# Peers (the nano-drone benchmark's ONNX models and scalers, later other identification
-# toolboxes) run in an interpreter of their own, $BENCH, made from the pinned
-# requirements/bench.txt alone: the product never imports them, and the offline/peers/
-# adapters that do run with $BENCH/bin/python. Remade whole when its inputs changed.
-bench_hash() { hash_files "$REQ/bench.txt" "${BASH_SOURCE[0]}"; }
+# Peers (the nano-drone benchmark's ONNX models and scalers, SysIdentPy, PySINDy and
+# deepsysid) run in an interpreter of their own, $BENCH, made from the pinned
+# requirements/bench.txt and the vendored deepsysid source (tools/bench/vendor, not on
+# the registry; installed without its declared dependencies, which bench.txt pins as its
+# models need them): the product never imports them, and the offline/peers/ adapters
+# that do run with $BENCH/bin/python. Remade whole when its inputs changed.
+BENCH_VENDOR="$ROOT/tools/bench/vendor"
+bench_hash() { hash_files "$REQ/bench.txt" "$BENCH_VENDOR"/*.tar.gz "${BASH_SOURCE[0]}"; }
 
 stage_bench() {
   local want; want="$(bench_hash)"
@@ -275,6 +278,15 @@ stage_bench() {
     [ -n "$why" ] && die "no network to the package registry: cannot reach $why; connect or set PIP_INDEX_URL to a reachable mirror (log: $log)"
     die "installing the bench environment failed: $(grep -E 'ERROR' "$log" | tail -n 1) (log: $log)"
   fi
+  local archive src="$BENCH/vendor-src"
+  for archive in "$BENCH_VENDOR"/*.tar.gz; do
+    rm -rf "$src"; mkdir -p "$src"
+    tar -xzf "$archive" -C "$src" || die "could not unpack $archive"
+    "$BENCH/bin/python" -m pip install --disable-pip-version-check --no-deps \
+      --no-build-isolation "$src"/* >>"$log" 2>&1 \
+      || die "installing ${archive##*/} into the bench environment failed: $(grep -E 'ERROR' "$log" | tail -n 1) (log: $log)"
+  done
+  rm -rf "$src"
   echo "$want" >"$BENCH/.bench-hash"
 }
 
