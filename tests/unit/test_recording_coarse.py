@@ -12,6 +12,7 @@ from its track.
 
 import numpy as np
 import pandas as pd
+import pytest
 
 from vessel_datasets import column_map, map_checks, pipeline
 from vessel_datasets.quantities import local_projection
@@ -197,3 +198,28 @@ def test_a_gps_only_log_with_a_mirrored_heading_fails(tmp_path):
                            BOAT)
     turn = checks['heading']
     assert not turn.ok and turn.figure < 0 and 'turns against the track' in turn.message
+
+
+def test_a_smooth_float_track_is_not_coarse_wherever_its_speed_grows_with_its_values():
+    """
+    A motion-capture track in float32 at 10 Hz, faster where its values are larger.
+
+    Each magnitude band's slowest changes are its motion, not a printed step: the
+    snuboat's tracks were judged coarse for it, the position comparison smoothed longer
+    and its lag moved from -0.07 s to -0.12 s (issue 46, defect 1).
+    """
+    from vessel_datasets import resolution
+
+    t = np.arange(0.0, 120.0, 0.1)
+    rng = np.random.default_rng(0)
+    speed = 0.05 + 0.3 * (t / t[-1])                     # 0.05 to 0.35 m/s
+    north = (5.0 + np.cumsum(speed) * 0.1 + 1e-4 * rng.normal(size=len(t)))
+    east = (2.0 + 0.3 * np.sin(t / 20.0))
+    track = np.column_stack([north, east]).astype(np.float32).astype(float)
+    t_ns = np.round(t * 1e9).astype(np.int64)
+    assert resolution.analyse('position', t_ns, track, 'm') is None
+    # The same track printed in 1 cm steps is coarse: its changes are whole centimetres.
+    printed = np.round(track * 100.0) / 100.0
+    coarse = resolution.analyse('position', t_ns, printed, 'm')
+    assert coarse is not None
+    assert coarse.step / 0.01 == pytest.approx(round(coarse.step / 0.01), abs=1e-6)

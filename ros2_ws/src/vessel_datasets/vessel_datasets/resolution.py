@@ -15,7 +15,11 @@ printed to three digits moves in 0.1 m steps near its start, 10 m steps beyond 1
 and its other coordinate may stay near zero, finely printed, for the whole run. So the
 step is measured per magnitude band of the values (``BANDS_PER_DECADE``), each sample
 takes its band's step, and the channel's step is a high percentile of those
-(``COARSE_PERCENTILE``): the coarse stretches are what a check must allow for.
+(``COARSE_PERCENTILE``): the coarse stretches are what a check must allow for. A band's
+step counts only where its changes take few distinct values (``DISTINCT_SHARE``), as
+whole multiples of a printed step do: a smooth, finely sampled channel whose speed grows
+with its values (a motion-capture track in float32: every change a value of its own)
+has no step, and its slowest changes in a fast band are none.
 """
 
 from __future__ import annotations
@@ -33,6 +37,8 @@ FLOAT_NOISE = 1e-9       # relative change below which two values count as equal
 BANDS_PER_DECADE = 4     # magnitude bands a decade of values is cut into for their steps
 MIN_BAND_CHANGES = 5     # changes a band needs for a step of its own (else the overall one)
 COARSE_PERCENTILE = 90   # the channel's step: this percentile of its samples' band steps
+DISTINCT_SHARE = 0.2     # a band is printed in steps when its changes take at most this
+                         # share of distinct values (equal to FLOAT_NOISE of its values)
 EARTH_RADIUS_M = 6371000.0  # only to express degree steps in metres in a note
 
 
@@ -108,10 +114,18 @@ def _magnitude_step(x: np.ndarray, d: np.ndarray) -> float:
         for b in np.unique(band[changed]):
             in_band = band == b
             if (in_band & changed).sum() >= MIN_BAND_CHANGES:
-                steps[in_band] = np.percentile(np.abs(d[in_band & changed, j]),
-                                               STEP_PERCENTILE)
+                changes = np.abs(d[in_band & changed, j])
+                if _quantized(changes, magnitude[in_band].max()):
+                    steps[in_band] = np.percentile(changes, STEP_PERCENTILE)
         per_sample = np.maximum(per_sample, steps)
     return float(np.percentile(per_sample, COARSE_PERCENTILE))
+
+
+def _quantized(changes: np.ndarray, magnitude: float) -> bool:
+    """Tell whether changes take few distinct values: printed in steps (module docstring)."""
+    resolution = max(FLOAT_NOISE * magnitude, np.finfo(float).tiny)
+    distinct = len(np.unique(np.round(changes / resolution)))
+    return distinct <= DISTINCT_SHARE * len(changes)
 
 
 def note(res: Resolution, label: str, column: str, period_s: float) -> str:
