@@ -12,6 +12,10 @@ boat a JointState) override the simulated operator while they keep arriving.
 ``~/reset`` (std_srvs/Trigger) starts the run again. Topics the vessel file names under
 ``/vessel`` are relative to the node's namespace (``-r __ns:=/boat1``). All numerics
 live in ``vessel_physics``; this module only moves values between it and messages.
+
+A tick that comes late is made up at the next (``pacing.Pacer``): the simulated time
+keeps the wall clock's pace on average (a quadrotor's 100 Hz on a busy machine); a node
+that cannot keep up at all says so and lets the missed periods go.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from rosgraph_msgs.msg import Clock as ClockMsg
 from std_srvs.srv import Trigger
 
 from ship_sim_node.command_gate import CommandGate, CommandLimits
+from ship_sim_node.pacing import Pacer
 from vessel_datasets.topic_map import ACTUATOR_PREFIX, TopicMapError, topic_map_for
 from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
 from vessel_physics.errors import ConfigError
@@ -84,6 +89,8 @@ class SimulatorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
 
         self.timer = None
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.pacer = Pacer(self.output_period, params['real_time_factor'])
         self._start_timer(params['real_time_factor'])
         self._publish(self.sim.sample())
         self.get_logger().info(
@@ -98,11 +105,21 @@ class SimulatorNode(Node):
         # A steady wall clock drives the stepping: this node *is* the source of /clock,
         # so a sim-time timer would wait for itself.
         self.timer = self.create_timer(self.output_period / real_time_factor, self._tick,
-                                       clock=Clock(clock_type=ClockType.STEADY_TIME))
+                                       clock=self._steady)
+        self.pacer.restart(self._now(), self.sim.t, real_time_factor)
+
+    def _now(self) -> float:
+        return self._steady.now().nanoseconds * 1e-9
 
     def _tick(self) -> None:
-        sample = self.sim.advance(self.gate.active(self.sim.t))
-        self._publish(sample)
+        skipped = self.pacer.skipped
+        for _ in range(self.pacer.due(self._now(), self.sim.t)):
+            sample = self.sim.advance(self.gate.active(self.sim.t))
+            self._publish(sample)
+        if self.pacer.skipped > skipped:
+            self.get_logger().warning(
+                f'cannot keep {self.pacer.real_time_factor:g}x real time: '
+                f'{self.pacer.skipped} output periods let go so far', throttle_duration_sec=10.0)
 
     def _publish(self, sample) -> None:
         values = {key: float(value[0]) for key, value in sample.items()}
@@ -137,6 +154,7 @@ class SimulatorNode(Node):
     def _on_reset(self, request, response):
         self.sim.reset(self.get_parameter('seed').value)
         self.gate.clear()
+        self.pacer.restart(self._now(), self.sim.t)
         self._publish(self.sim.sample())
         response.success = True
         response.message = f'reset to t = 0 with seed {self.sim.seed}'

@@ -27,7 +27,7 @@ from collections.abc import Callable, Mapping
 
 from vessel_physics import frames
 
-from .fields import compile_getter, pad_named, set_path
+from .fields import compile_getter, pad_named, parse_path, set_path
 from .topic_map import ACTUATOR_PREFIX, TopicMap, TopicMapError
 
 WRITABLE = {'body_velocity': ('surge', 'sway', 'heave', 'roll_rate', 'pitch_rate', 'yaw_rate'),
@@ -118,6 +118,10 @@ class MessageWriter:
         self.world_frame, self.body_frame = world_frame, body_frame
         self.leaves = {topic: [leaf for leaf in topic_map.leaves() if leaf.topic == topic]
                        for topic in topic_map.topics}
+        # Elements indexed by name (JointState's velocity[m1]) pad their arrays to the names.
+        self.named = {topic: [leaf.path for leaf in leaves
+                              if isinstance(parse_path(leaf.path)[-1].key, str)]
+                      for topic, leaves in self.leaves.items()}
         self.frame = {topic: world_frame if any(leaf.group in POSE_GROUPS for leaf in leaves)
                       else body_frame for topic, leaves in self.leaves.items()}
 
@@ -132,8 +136,8 @@ class MessageWriter:
         msg = self.types[topic]()
         for leaf in self.leaves[topic]:
             set_path(msg, leaf.path, (channels[leaf.channel] - leaf.offset) / leaf.scale)
-        for leaf in self.leaves[topic]:
-            pad_named(msg, leaf.path)
+        for path in self.named[topic]:
+            pad_named(msg, path)
         header = getattr(msg, 'header', None)
         if header is not None:
             if stamp is not None:
