@@ -12,7 +12,10 @@ A scenario names the vessel file (``vessel``: its vectors, rate, actuator ranges
 recording map) and the physics the simulated vessel truly has (``physics``: any family's
 physics or parameter file; default the one the vessel file names). Operator keys left
 at null are derived from the vessel file's actuator ranges (``derived_operator``); a
-craft without rudders is steered by differential thrust.
+craft without rudders is steered by differential thrust. A vehicle with rotors is flown
+by the flight controller instead: its scenario has a ``flight`` section
+(``FLIGHT_SCHEMA``: gains, trajectory kinds and their settings), which no other vessel
+may have.
 
 Unmodelled-effect hook. ``extra_forces: "package.module:function"`` names a callable
 (module importable from PYTHONPATH) that the simulator calls at every RK4 stage::
@@ -21,16 +24,18 @@ Unmodelled-effect hook. ``extra_forces: "package.module:function"`` names a call
 
 - ``t``: float, simulation time in s (0 at the first sample; negative in warm-up);
 - ``state``: dict of float64 arrays of shape (n_runs,): the vessel's states (``u``, ``v``
-  body velocity over ground, m/s, FRD; ``p``, ``r`` rad/s; ``phi`` rad), ``u_water``,
-  ``v_water`` (through the water, m/s), ``psi`` (rad, NED, unwrapped), ``x``, ``y`` (m,
-  NED, from the first sample; during warm-up, from where the warm-up began);
+  body velocity over ground, m/s, FRD; ``p``, ``r`` rad/s; ``phi`` rad; a 6-DOF
+  vehicle's ``w``, ``q``, ``theta`` too), ``u_water``, ``v_water`` (through the water,
+  m/s), ``psi`` (rad, NED, unwrapped), ``x``, ``y`` (and a 6-DOF vehicle's ``z``, down)
+  (m, NED, from the first sample; during warm-up, from where the warm-up began);
 - ``controls``: dict of arrays (n_runs,): the actual state of each vessel actuator, by
   its name (units of the vessel file);
 - ``environment``: dict of arrays (n_runs,): ``wind_speed`` (m/s, true),
   ``wind_dir`` (rad, where the true wind comes from relative to the bow, + starboard),
   ``current_north``, ``current_east`` (m/s, NED), ``wave_elevation`` (m, at CO);
 - returns the extra generalized forces (n_runs, n_dof) of the vessel's family (the
-  patrol boat: [X, Y, K, N] about CO in FRD, N and N m), added before the mass matrix.
+  patrol boat: [X, Y, K, N] about CO in FRD, N and N m; the multirotor [X, Y, Z, K, M,
+  N] about the CG), added before the mass matrix.
   It must be a smooth function of its arguments (RK4 evaluates it four times per step)
   and must not modify its inputs.
 
