@@ -153,3 +153,14 @@ def test_a_schedule_served_by_torch_and_the_compiled_engine_alike(tmp_path):
     assert engine.relative_threshold == schedule
     served = engine.forecast(zw[0].numpy(), cw[0].numpy(), cf.numpy())
     np.testing.assert_allclose(served.hybrid[0], hybrid[0].numpy(), rtol=1e-9, atol=1e-12)
+
+
+def test_a_served_threshold_as_one_number_is_the_loosest_that_holds_at_every_step():
+    import math
+
+    from hybrid_models.bound import loosest
+
+    assert loosest(0.15) == 0.15 and loosest(0) == 0.0
+    assert math.isnan(loosest(None))
+    assert loosest([[0, 0.0], [2.0, 0.3], [5.0, 0.1]]) == 0.3
+    assert math.isnan(loosest([[0, 0.05], [3.0, None]]))

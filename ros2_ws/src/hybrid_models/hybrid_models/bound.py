@@ -93,6 +93,17 @@ def is_constant(threshold) -> bool:
     return len(schedule_of(threshold)) == 1
 
 
+def loosest(threshold) -> float:
+    """
+    Return a served threshold as one number: the largest of a schedule, NaN if unbounded.
+
+    What a message that carries one figure reports (the predictor's Forecast): the bound
+    that holds at every step of the forecast.
+    """
+    values = [t for _, t in schedule_of(threshold)]
+    return math.nan if any(t is None for t in values) else float(max(values))
+
+
 def step_bounds(threshold, out_range: np.ndarray, dt: float, horizon: int) -> np.ndarray:
     """
     Return the half-widths (horizon, n_state) of forecast steps 1..horizon.

@@ -59,6 +59,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from what_if_c.door import open_door
 
+from hybrid_models.bound import loosest
 from hybrid_models.checkpoint_format import CheckpointError
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import reported_steps
@@ -163,9 +164,13 @@ class PredictorNode(Node):
         self.plan_topic = self.resolve_topic_name(PLAN_TOPIC)
         self.window = InputWindow.of_node(self.topic_map, window, self.spec.dt, p,
                                           labels=self.resolved)
-        self.bounded = bool(np.isfinite(self.engine.bound).all())
+        # A threshold schedule (the do-no-harm selection's) is reported by its loosest
+        # entry, and the bound by every step's largest: what holds at every step.
+        self.step_bounds = self.engine.step_bounds(self.horizon)
+        self.residual_bound = self.step_bounds.max(axis=0)
+        self.bounded = bool(np.isfinite(self.residual_bound).all())
         threshold = self.engine.relative_threshold
-        self.relative_threshold = math.nan if threshold is None else float(threshold)
+        self.relative_threshold = loosest(threshold)
         unbounded = '' if self.bounded or p['allow_unbounded'] else (
             f'model {self.engine.model_id} is served unbounded (relative threshold '
             f'{threshold}): the LSTM correction has no bound; set allow_unbounded:=true if '
@@ -509,7 +514,7 @@ class PredictorNode(Node):
         latency_ms = (time.time_ns() - received_ns) * 1e-6
         with self.lock:
             self.health.record_forecast(self._now(), latency_ms, bound_hit_fraction(
-                forecast.hybrid, forecast.physics, self.engine.bound), time.monotonic())
+                forecast.hybrid, forecast.physics, self.step_bounds), time.monotonic())
         self.path_pub.publish(self._path_message(msg))
 
     def _score(self, result) -> None:
@@ -590,7 +595,7 @@ class PredictorNode(Node):
             msg.control_names = list(self.spec.control_names)
             msg.control_units = list(self.spec.control_units)
             msg.hybrid, msg.physics = doubles(hybrid_flu[i]), doubles(physics_flu[i])
-            msg.residual_bound = doubles(self.engine.bound)
+            msg.residual_bound = doubles(self.residual_bound)
             msg.x, msg.y, msg.heading = doubles(x_enu[i]), doubles(y_enu[i]), doubles(
                 heading[i])
             if z_enu is not None:

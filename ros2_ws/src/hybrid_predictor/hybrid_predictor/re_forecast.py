@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from hybrid_models.bound import loosest
 from hybrid_models.engine import Forecaster
 from hybrid_predictor_interfaces.msg import Forecast
 from vessel_datasets.topic_map import TopicMap
@@ -142,7 +143,7 @@ class ReForecast:
             last = bisect_right(times, newest)
             spacing = np.diff(times[first:last])
             if len(spacing) and spacing.max() > MISSED_SPACINGS * np.median(np.diff(times)):
-                raise ReForecastError(f'{topic}: a gap of {spacing.max():.1f} s in the kept '
+                raise ReForecastError(f'{topic}: a gap of {spacing.max():.3g} s in the kept '
                                       f'samples before {t_end:.3f} s (a message missed)')
             for k in range(first, last):
                 window.push(topic, times[k], rows[k])
@@ -180,8 +181,7 @@ class ReForecast:
                                   f'{self.engine.model_id}')
         served = self.engine.relative_threshold
         sent = float(forecast.relative_threshold)
-        if math.isfinite(sent) and not (isinstance(served, (int, float)) and
-                                        math.isclose(sent, served, rel_tol=1e-9)):
+        if math.isfinite(sent) and not math.isclose(sent, loosest(served), rel_tol=1e-9):
             raise ReForecastError(f'forecast at relative threshold {sent:g}, the offline '
                                   f'engine serves {served}')
         t_end = seconds_from_stamp(forecast.header.stamp)
