@@ -2,7 +2,8 @@
 The peer benchmark: other identification tools on exactly our splits, windows and measures.
 
 A study of ours (``offline/crossval.py``: QLag, the LSTM, the hybrid and its physics on
-the dataset's own split or on folds) fixes the training, validation and test runs of
+the dataset's own split or on folds; or ``offline/reproduce_table3.py``'s, on the
+dataset's own split) fixes the training, validation and test runs of
 every fold and the test protocol (window, horizon, stride, noise-free targets). For each
 fold this module writes one problem (``offline/peers/peer_io.py``: the fold's training
 runs, its validation forecasts with measured targets, its test windows without targets),
@@ -25,10 +26,10 @@ import time
 import numpy as np
 
 from hybrid_models.checkpoint import CheckpointError, read_header
-from hybrid_models.data import forecast_windows, load_runs
+from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.evaluation import seed_row
 from hybrid_models.metrics import forecast_metrics
-from hybrid_models.studies.crossval import MODEL_FILE, read_study, run_dir, study_models
+from hybrid_models.studies.crossval import MODEL_FILE, read_study, run_dir
 from vessel_datasets.format import read_dataset
 
 PEER_DIR = Path('offline') / 'peers'
@@ -73,10 +74,42 @@ def _digest(path: Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def write_problems(study: Path, work: Path, seeds: list[int], root: Path) -> tuple[list, dict]:
+def study_folds(study: Path, dataset: Path | None = None) -> tuple[list, dict]:
+    """
+    Return the folds of a finished study and its results.
+
+    A crossval study names its folds; a Table 3 study (reproduce_table3's results.json)
+    is one fold, the dataset it names (or ``dataset``) with its own split. Without a
+    study (None), the dataset's own split under the vehicle's protocol, with no rows of
+    ours (the peers alone).
+    """
+    from hybrid_models.studies.crossval import Fold
+    if study is None:
+        ds = read_dataset(dataset)
+        split = ds.manifest['split']
+        window, horizon, stride = evaluation_protocol(ds.vessel)
+        return [Fold(0, ds.root, *(tuple(split[k]) for k in ('train', 'val', 'test')))], {
+            'protocol': {'window': window, 'horizon': horizon, 'stride': stride,
+                         'target': 'true', 'seeds': []}, 'rows': []}
+    path = Path(study) / 'results.json'
+    try:
+        result = json.loads(path.read_text())
+    except (OSError, ValueError) as exc:
+        raise PeerStudyError(f'{study} holds no finished study: {exc}') from None
+    if 'folds' in result:
+        return read_study(study)[0], result
+    if 'dataset' not in result or 'protocol' not in result:
+        raise PeerStudyError(f'{path} is neither a crossval nor a Table 3 study')
+    ds = read_dataset(dataset or result['dataset']['path'])
+    split = ds.manifest['split']
+    return [Fold(0, ds.root, *(tuple(split[k]) for k in ('train', 'val', 'test')))], result
+
+
+def write_problems(study: Path, work: Path, seeds: list[int], root: Path,
+                   dataset: Path | None = None) -> tuple[list, dict]:
     """Write every fold's problem under ``work``; return (FoldProblems, the study's results)."""
     peer_io = _load_peer_io(root)
-    folds, result = read_study(study)
+    folds, result = study_folds(study, dataset)
     proto = result['protocol']
     window, horizon, stride = proto['window'], proto['horizon'], proto['stride']
     problems = []
@@ -160,6 +193,10 @@ def peer_row(peer: str, problems: list[FoldProblem], answers: list[Path], spec, 
 
 def _fit_seconds(study: Path, result: dict, label: str, folds: list) -> list | None:
     """Our model's training time per fold and seed from its checkpoints (None: unknown)."""
+    if 'folds' not in result:   # a Table 3 study: its rows say
+        row = next(r for r in result['rows'] if r['label'] == label)
+        seconds = row.get('train_seconds') or []
+        return [[float(x) for x in seconds]] if seconds and None not in seconds else None
     out = []
     for fold in folds:
         per = []
@@ -179,9 +216,11 @@ def _fit_seconds(study: Path, result: dict, label: str, folds: list) -> list | N
     return out
 
 
-def study(study_dir: Path, out: Path, peers: list[str], seeds: list[int], work: Path | None,
+def study(study_dir: Path | None, out: Path, peers: list[str], seeds: list[int],
+          work: Path | None,
           bench_python: Path, root: Path, quick: bool = False, title: str | None = None,
-          say=lambda m: print(m, file=sys.stderr), options: dict | None = None) -> dict:
+          say=lambda m: print(m, file=sys.stderr), options: dict | None = None,
+          dataset: Path | None = None) -> dict:
     """Run every peer on every fold of ``study_dir``; write results.json and table.md."""
     unknown = [p for p in peers if p not in PEERS]
     if unknown:
@@ -190,8 +229,8 @@ def study(study_dir: Path, out: Path, peers: list[str], seeds: list[int], work: 
         raise PeerStudyError(f'{bench_python} is missing: make the bench environment first '
                              '(tools/setup.sh bench)')
     work = work or out / 'work'
-    problems, result = write_problems(study_dir, work, seeds, root)
-    folds, _ = read_study(study_dir)
+    problems, result = write_problems(study_dir, work, seeds, root, dataset)
+    folds, _ = study_folds(study_dir, dataset)
     spec = read_dataset(folds[0].path).vessel
     true = np.concatenate([p.truth for p in problems])
     scale = true.reshape(-1, true.shape[-1]).std(axis=0)
@@ -204,13 +243,14 @@ def study(study_dir: Path, out: Path, peers: list[str], seeds: list[int], work: 
     ours = []
     for row in result['rows']:
         mine = dict(row)
-        if row['label'] in study_models(result):
+        if 'per_seed_metrics' in row or row.get('kind') == 'model':
             mine['fit_seconds'] = _fit_seconds(study_dir, result, row['label'], folds)
         ours.append(mine)
     out.mkdir(parents=True, exist_ok=True)
     summary = {'title': title or read_dataset(folds[0].path).vessel.name,
-               'study': str(study_dir), 'protocol': result['protocol'],
-               'folds': result['folds'],
+               'study': None if study_dir is None else str(study_dir),
+               'protocol': result['protocol'],
+               'folds': result.get('folds') or [f.describe() for f in folds],
                'problems': [{'fold': p.index, 'sha256': p.sha256} for p in problems],
                'state_names': list(spec.state_names), 'rows': rows + ours,
                'peers': peers, 'quick': quick, 'options': options or {}}
