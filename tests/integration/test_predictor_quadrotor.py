@@ -60,22 +60,23 @@ def quad_model(tmp_path_factory):
 
 def test_the_predictor_forecasts_a_quadrotor_in_space_equal_to_its_offline_recomputation(
         quad_model, launcher, ros_node):
+    from diagnostic_msgs.msg import DiagnosticArray
     from nav_msgs.msg import Odometry
     from rclpy.executors import SingleThreadedExecutor
     from sensor_msgs.msg import JointState
 
     from hybrid_models.engine import Forecaster
-    from hybrid_predictor.re_forecast import ReForecast, predictor_defaults
+    from hybrid_predictor.re_forecast import ReForecast, compare, predictor_defaults
+    from hybrid_predictor.replay import RunReplay
     from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
     from hybrid_predictor_interfaces.srv import Predict
     from tests.unit.tracks import spatial_flight
     from vessel_datasets.topic_map import topic_map_for
-    from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
     from vessel_description import load_vessel
-    from vessel_ros_bridge import messages as m
 
-    forecasts = []
+    forecasts, diagnostics = [], []
     ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 100)
+    ros_node.create_subscription(DiagnosticArray, '/diagnostics', diagnostics.append, 10)
     predictor = launcher.start_node('hybrid_predictor', 'predictor', '--ros-args',
                                     '-p', f'model_path:={quad_model}',
                                     '-p', 'vessel:=crazyflie_brushless',
@@ -85,27 +86,13 @@ def test_the_predictor_forecasts_a_quadrotor_in_space_equal_to_its_offline_recom
 
     vehicle = load_vessel('crazyflie_brushless')
     topic_map = topic_map_for(vehicle)
-    writer = MessageWriter(topic_map, {'/vessel/odom': Odometry,
-                                       '/vessel/actuators': JointState})
-    pubs = {t: ros_node.create_publisher(writer.types[t], t, 100) for t in writer.topics}
-    readers = {t: channel_reader(topic_map, t) for t in writer.topics}
+    replay = RunReplay(ros_node, topic_map, {'/vessel/odom': Odometry,
+                                             '/vessel/actuators': JointState})
     flight = flight_table(spatial_flight(seconds=3.0, seed=9))
     executor = SingleThreadedExecutor(context=ros_node.context)
     executor.add_node(ros_node)
-    sent = []   # (stamp s, topic, channels as the predictor reads them)
-    start, wall = time.monotonic(), time.time()
     try:
-        for k, row in enumerate(flight.to_dict('records')):
-            while time.monotonic() - start < k / vehicle.rate_hz:   # 100 Hz
-                executor.spin_once(timeout_sec=0.001)
-            # Stamped on the flight's own 100 Hz clock, as a sensor stamps its samples,
-            # whatever this process's scheduling adds to the sending.
-            now = wall + k / vehicle.rate_hz
-            channels = channel_values(row, topic_map)
-            for topic in writer.topics:
-                msg = writer.message(topic, channels, m.stamp_from_seconds(now))
-                pubs[topic].publish(msg)
-                sent.append((now, topic, readers[topic](msg)))
+        replay.play(flight, time.time(), lambda s: executor.spin_once(timeout_sec=s))
         deadline = time.monotonic() + 5
         while time.monotonic() < deadline and len(forecasts) < 10:
             executor.spin_once(timeout_sec=0.05)
@@ -141,13 +128,20 @@ def test_the_predictor_forecasts_a_quadrotor_in_space_equal_to_its_offline_recom
     assert msg.horizon == 100 and msg.step_period == pytest.approx(0.01)
     assert len(msg.x) == len(msg.y) == len(msg.z) == 100
     assert np.isfinite(msg.hybrid).all() and np.isfinite(msg.z).all()
-    # Live = offline: every forecast recomputed from the messages as they were sent.
+    # Live = offline: every forecast recomputed from the messages as they were sent, but
+    # for those the node had to make before a state's rotor speeds arrived (under load;
+    # counted on /diagnostics): so does the demo.
+    seen = len(diagnostics)
+    assert spin_until(ros_node, lambda: len(diagnostics) > seen, 10)
+    status = {kv.key: kv.value for s in diagnostics[-1].status
+              if s.name.endswith(': forecast') for kv in s.values}
+    late = int(status['forecasts_before_sample_complete'])
     # The node serves the checkpoint's own threshold (a schedule here, which the message
     # reports by its loosest entry): so does the offline engine.
     kept = ReForecast(Forecaster.from_checkpoint(quad_model), topic_map, predictor_defaults())
-    for t, topic, values in sent:
+    for t, topic, values in replay.sent:
         kept.add_sample(topic, t, values)
-    differences = [kept.difference(fc) for fc in forecasts]
-    worst = max(max(d.relative.values()) for d in differences)
-    track = max(d.position_m for d in differences)
-    assert worst < 1e-5 and track < 1e-3, (worst, track)
+    summary = compare(kept, forecasts)
+    assert summary['compared'] == len(forecasts), summary
+    assert summary['unequal_count'] <= late, (summary, late)
+    assert summary['compared'] - late >= 10, (summary, late)
