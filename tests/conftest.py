@@ -12,7 +12,8 @@ from pathlib import Path
 # the live graphs they start, and two of the longest started together slowed each other
 # (the suite took 245 s instead of 188-218 s): there pytest-xdist's own order stays.
 LONGEST_FIRST = tuple(f'unit/test_{name}.py' for name in (
-    'diagnosis_cases', 'diagnosis_families', 'crossval', 'set_bands_study', 'training_resume',
+    'diagnosis_cases', 'diagnosis_families', 'crossval', 'set_bands_study', 'real_claims',
+    'training_resume',
     'simulate_cli', 'physics_simulator', 'models_engine', 'workflow', 'diagnosis_mmg',
     'physics_manoeuvres', 'held_wind'))
 TESTS = Path(__file__).resolve().parent
