@@ -31,7 +31,7 @@ test-slow:  ## only the slow checks (minutes each)
 lint: setup  ## quality gates only
 	@tools/with_env.sh tools/run_tests.sh --lint-only
 
-bench: setup  ## the benchmarks, JSON on stdout (the 10-minute soak: offline/bench.py soak)
+bench: setup  ## the benchmarks, JSON on stdout (the 10-minute soak: offline/bench.py soak; each suite's short form: offline/bench.py --quick SUITE, run by make test-slow)
 	@for suite in sim convert forecast scale launch; do tools/with_env.sh python offline/bench.py $$suite; done
 
 clean:  ## remove build products and the test-only tools (keeps .venv)

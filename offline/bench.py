@@ -13,6 +13,8 @@ an absolute time that depends on the machine) and states its goals beside the fi
     python offline/bench.py departure  # the departure WARN: an effect switched on mid-run
     python offline/bench.py scale      # 1 vs 2 training processes, 10x data, 1 vs 2 workers
     python offline/bench.py launch     # a study's trainings forked vs one process each
+    python offline/bench.py --quick SUITE   # the suite in seconds to minutes (CI): each
+                                            # module's QUICK options, before your own
 """
 
 import argparse
@@ -43,6 +45,9 @@ def main(argv=None) -> int:
     """Parse the command line, run one suite, print its JSON; return the exit code."""
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--quick', action='store_true',
+                        help="a short run of the suite (its module's QUICK options; any "
+                             'given after the suite still apply): it runs end to end, for CI')
     sub = parser.add_subparsers(dest='suite', required=True, metavar='SUITE')
     modules = {}
     for name, (module_name, help_text) in SUITES.items():
@@ -55,6 +60,10 @@ def main(argv=None) -> int:
         modules[name] = module
         module.add_arguments(sub.add_parser(name, help=help_text, description=help_text))
     args = parser.parse_args(argv)
+    if args.quick:   # the suite's short options first: the user's, after them, win
+        argv = list(sys.argv[1:] if argv is None else argv)
+        at = argv.index(args.suite) + 1
+        args = parser.parse_args(argv[:at] + list(modules[args.suite].QUICK) + argv[at:])
     result = modules[args.suite].run(args)
     json.dump(result, sys.stdout, indent=2)
     sys.stdout.write('\n')

@@ -28,6 +28,11 @@ HOURS_96_MESSAGES = 96 * 3600 * len(synthetic.SIM_TOPICS)  # at 1 Hz per topic
 BRIEF_96H_MESSAGES = 1_400_000  # the brief's rounder figure, projected as well
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick convert`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--hours', '0.5')
+
+
 def add_arguments(parser) -> None:
     """Command-line options of this suite."""
     parser.add_argument('--hours', type=float, default=96.0,

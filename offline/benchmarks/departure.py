@@ -45,6 +45,11 @@ OPERATORS = {'shipped': {},
                          'turn_probability': 0.0}}
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick departure`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--onset', '120', '--hours', '0.1')
+
+
 def add_arguments(parser) -> None:
     """Declare this suite's options."""
     parser.add_argument('--effect', default='hull_fouling',

@@ -37,6 +37,11 @@ print(time.perf_counter() - started)
 """
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick forecast`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--repeats', '3', '--naive-repeats', '1', '--node-samples', '10')
+
+
 def add_arguments(parser) -> None:
     """Declare this suite's options."""
     parser.add_argument('--model', type=Path, default=None,

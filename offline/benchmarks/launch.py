@@ -24,6 +24,11 @@ SHORT = ['training.progress=false', 'training.threads=1',
 GOAL_RATIO = 2.0
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick launch`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--trainings', '2')
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add this suite's options."""
     parser.add_argument('--trainings', type=int, default=6,

@@ -42,6 +42,11 @@ INTRUDER_START = 1.0e6   # the second clock's time line, far from the first
 SETTLE_S = 5.0           # forecasting steadily this long before the event
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick outage`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--outage', '3', '--watch', '20')
+
+
 def add_arguments(parser) -> None:
     """Declare this suite's options."""
     parser.add_argument('--case', choices=CASES, nargs='+', default=['pause'],

@@ -57,6 +57,11 @@ PEAK_RSS = ('import resource, subprocess, sys; done = subprocess.run(sys.argv[1:
             'resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)')
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick scale`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--runs', '5', '--samples', '400', '--epochs', '1', '--bags', '2', '--bag-minutes', '1')
+
+
 def add_arguments(parser) -> None:
     """Command-line options of this suite."""
     parser.add_argument('--runs', type=int, default=8,

@@ -20,6 +20,11 @@ GOAL_MEMORY_GIB = 2.0
 KIB_PER_GIB = 1024.0 ** 2
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick sim`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--runs', '2', '--hours', '0.02')
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add this suite's options."""
     parser.add_argument('--runs', type=int, default=96, help='runs (default 96)')

@@ -82,6 +82,11 @@ def positive_int(text: str) -> int:
     return value
 
 
+# A run that takes seconds to minutes, for CI (`bench.py --quick soak`): it shows the
+# suite still runs end to end; its figures say nothing of the full run's.
+QUICK = ('--duration', '20')
+
+
 def add_arguments(parser) -> None:
     """Declare this suite's options."""
     parser.add_argument('--duration', type=float, default=600.0,
