@@ -74,7 +74,7 @@ def test_a_peer_is_scored_on_our_windows_as_our_models_are(setup, tmp_path):
     truth = windows.z_target
     scale = truth.reshape(-1, truth.shape[-1]).std(axis=0)
     row = summary['rows'][0]
-    assert row['label'] == 'narx' and row['seeds'] == 2
+    assert row['label'] == 'peer: NARX (SysIdentPy)' and row['seeds'] == 2
     for s in (0, 1):
         hold = np.repeat(windows.z_window[:, -1:], horizon, axis=1) + s
         expected = forecast_metrics(hold, truth, vessel, state_std=scale)
@@ -87,7 +87,7 @@ def test_a_peer_is_scored_on_our_windows_as_our_models_are(setup, tmp_path):
     with np.load(peers.write_problems(None, tmp_path / 'w', [0], root, ds)[0][0].path) as f:
         assert not any(k.startswith('test_z_target') for k in f.files)
     table = (out / 'table.md').read_text()
-    assert '| narx (SysIdentPy NARX (FROLS, polynomial))' in table and '| 1 ± 0 |' in table
+    assert '| peer: NARX (SysIdentPy) |' in table and '| 1.0 ± 0.0 |' in table
     # The same problem and adapter: kept, not run again.
     peers.study(None, out, ['narx'], [0, 1], None, Path(sys.executable), root, dataset=ds,
                 say=said.append)

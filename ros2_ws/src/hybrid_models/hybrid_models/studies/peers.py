@@ -35,9 +35,9 @@ from vessel_datasets.format import read_dataset
 PEER_DIR = Path('offline') / 'peers'
 # The adapters: name -> (script under offline/peers, what it is).
 PEERS = {
-    'narx': ('narx.py', 'SysIdentPy NARX (FROLS, polynomial)'),
-    'sindy': ('sindy.py', 'PySINDy discrete-time SINDYc'),
-    'deepsysid-lstm': ('deepsysid_lstm.py', 'deepsysid LSTM with initializer'),
+    'narx': ('narx.py', 'NARX (SysIdentPy)'),
+    'sindy': ('sindy.py', 'SINDYc (PySINDy)'),
+    'deepsysid-lstm': ('deepsysid_lstm.py', 'LSTM+init (deepsysid)'),
 }
 
 
@@ -181,10 +181,11 @@ def peer_row(peer: str, problems: list[FoldProblem], answers: list[Path], spec, 
         if pred.shape != true.shape:
             raise PeerStudyError(f'{peer}: forecasts {pred.shape}, truth {true.shape}')
         metrics.append(forecast_metrics(pred, true, spec, state_std=scale))
-    row = seed_row(peer, metrics) if n_seeds > 1 else {
-        'label': peer, 'seeds': 1, 'metrics': metrics[0], 'spread': None}
+    label = f'peer: {PEERS[peer][1]}'
+    row = seed_row(label, metrics) if n_seeds > 1 else {
+        'label': label, 'seeds': 1, 'metrics': metrics[0], 'spread': None}
     row['per_seed_metrics'] = metrics
-    row['peer'] = PEERS[peer][1]
+    row['peer'] = peer
     row['fit_seconds'] = [[float(x) for x in a['fit_seconds']] for a in read]
     row['forecast_seconds'] = [[float(x) for x in a['forecast_seconds']] for a in read]
     row['meta'] = [a['meta'] for a in read]
@@ -277,9 +278,10 @@ def _seconds(row: dict) -> str:
     if not fits:
         return '—'
     per_seed = np.asarray(fits, np.float64).sum(axis=0)   # all folds of one seed
+    digits = 1 if per_seed.mean() < 10 else 0
     if len(per_seed) == 1:
-        return f'{per_seed[0]:.0f}'
-    return f'{per_seed.mean():.0f} ± {per_seed.std(ddof=1):.0f}'
+        return f'{per_seed[0]:.{digits}f}'
+    return f'{per_seed.mean():.{digits}f} ± {per_seed.std(ddof=1):.{digits}f}'
 
 
 def table(summary: dict) -> str:
@@ -299,7 +301,7 @@ def table(summary: dict) -> str:
         final = _pm(m['trajectory']['final_mean'], sd_traj.get('final_mean'), 2)
         if m.get('diverged') and m['trajectory']['mean'] is None:
             traj = final = 'diverged'
-        label = r['label'] + (f" ({r['peer']})" if r.get('peer') else '')
+        label = r['label'] if r.get('peer') else f"ours: {r['label']}"
         lines.append(f'| {label} | ' + ' | '.join(cells)
                      + f" | {traj} | {final} | {r.get('seeds', 1)} | {_seconds(r)} |")
     lines += ['', profile_table(summary)]
@@ -318,5 +320,6 @@ def profile_table(summary: dict) -> str:
         sd = ((r.get('spread') or {}).get('profile') or {}).get('position_m') or [
             None] * len(prof['steps'])
         cells = [_pm(v, s, 2) for v, s in zip(prof['position_m'], sd, strict=True)]
-        lines.append(f"| {r['label']} | " + ' | '.join(cells) + ' |')
+        label = r['label'] if r.get('peer') else f"ours: {r['label']}"
+        lines.append(f'| {label} | ' + ' | '.join(cells) + ' |')
     return '\n'.join(lines)
