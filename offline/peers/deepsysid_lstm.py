@@ -24,6 +24,10 @@ differences the truth against the prediction, REFERENCES.md). Batches are
 lowest validation score (sum over states of RMSE / training std over the validation
 windows, open loop) wins; that point is then trained with every seed of the problem.
 ``--epochs-scale`` scales both epoch counts (stated in the answer's meta). One thread.
+A control that is constant over the training runs (the KVLCC2 tank tests' shaft speed) is
+left out: deepsysid divides by each control's standard deviation unguarded, and a zero
+turns every forecast into NaN; it carries nothing a model trained on those runs could
+use.
 """
 
 from __future__ import annotations
@@ -73,17 +77,27 @@ def fit(problem: peer_io.Problem, point: dict, seed: int, scale_epochs: float):
                                                             STATIC['sequence_length']) // 4)))
     for key in ('epochs_initializer', 'epochs_predictor'):
         settings[key] = max(1, int(round(STATIC[key] * scale_epochs)))
-    config = config_class(device_name='cpu', control_names=problem.control_names,
+    keep = constant_free(problem.train)
+    config = config_class(device_name='cpu',
+                          control_names=[n for n, k in zip(problem.control_names, keep,
+                                                           strict=True) if k],
                           state_names=problem.state_names, time_delta=problem.dt,
                           **settings, **point)
     model = model_class(config)
-    model.train([c[:-1] for _, c in problem.train], [z[1:] for z, _ in problem.train])
+    model.train([c[:-1, keep] for _, c in problem.train], [z[1:] for z, _ in problem.train])
+    model.peer_controls = keep
     return model, settings
+
+
+def constant_free(runs: list) -> np.ndarray:
+    """Return the mask of the controls that vary over the runs."""
+    return np.concatenate([c for _, c in runs]).std(axis=0) > 0
 
 
 def forecast(model, windows: dict) -> np.ndarray:
     """Open-loop forecasts (B, H, n) by deepsysid's simulate, one window at a time."""
     zw, cw, cf = (np.asarray(windows[k], np.float64) for k in peer_io.WINDOW_FIELDS)
+    cw, cf = cw[..., model.peer_controls], cf[..., model.peer_controls]
     out = np.empty(cf.shape[:2] + (zw.shape[2],))
     for b in range(len(zw)):
         initial_control = np.concatenate([cw[b, :1], cw[b, :-1]])   # row 0 is dropped
@@ -130,7 +144,10 @@ def solve(problem: peer_io.Problem, args, say) -> dict:
                      'package': 'deepsysid', 'version': '0.1.24 (commit 6b0001c)',
                      'static': settings, 'epochs_scale': args.epochs_scale,
                      'defaults': DEFAULT, 'grid': tried, 'chosen': point,
-                     'tuning_seconds': tuning, 'stochastic': True}}
+                     'tuning_seconds': tuning, 'stochastic': True,
+                     'controls_left_out': [n for n, k in zip(
+                         problem.control_names, constant_free(problem.train), strict=True)
+                         if not k]}}
 
 
 def main(argv=None) -> int:
