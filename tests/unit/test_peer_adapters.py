@@ -62,12 +62,18 @@ def _windows(runs, stride=17):
             'z_target': np.array(zt)}
 
 
-def _problem(path, seeds=(0,)):
+def _problem(path, seeds=(0,), constant_control=False):
     rng = np.random.default_rng(3)
     train = [_linear_run(rng, 300) for _ in range(3)]
     val = [_linear_run(rng, 120)]
-    test = _windows([_linear_run(rng, 150) for _ in range(2)])
-    _peer_io().write_problem(path, state_names=['u', 'r'], control_names=['delta'], dt=0.1,
+    test = [_linear_run(rng, 150) for _ in range(2)]
+    names = ['delta']
+    if constant_control:   # a second control that never changes (a tank test's rpm)
+        names.append('n')
+        train, val, test = ([(z, np.concatenate([c, np.full_like(c, 7.0)], axis=1))
+                             for z, c in runs] for runs in (train, val, test))
+    test = _windows(test)
+    _peer_io().write_problem(path, state_names=['u', 'r'], control_names=names, dt=0.1,
                              window=W, horizon=H, seeds=list(seeds), train=train, val=val,
                              val_windows=_windows(val),
                              test_windows={k: test[k] for k in ('z_window', 'c_window',
@@ -135,7 +141,7 @@ def test_sindy_identifies_a_linear_system_exactly(tmp_path):
 @pytest.mark.slow
 @needs('deepsysid')
 def test_deepsysid_lstm_forecasts_every_window_per_seed(tmp_path):
-    truth = _problem(tmp_path / 'p.npz', seeds=(0, 1))
+    truth = _problem(tmp_path / 'p.npz', seeds=(0, 1), constant_control=True)
     result = _run('deepsysid_lstm.py', '--problem', tmp_path / 'p.npz', '--out',
                   tmp_path / 'a.npz', '--quick', '--epochs-scale', '0.01')
     assert result.returncode == 0, result.stderr
@@ -147,3 +153,5 @@ def test_deepsysid_lstm_forecasts_every_window_per_seed(tmp_path):
     assert np.abs(answer['pred'][0] - answer['pred'][1]).max() > 1e-6
     assert answer['meta']['static']['loss'] == 'mse'
     assert answer['meta']['static']['epochs_predictor'] == 8
+    # deepsysid divides by each control's spread: a constant one is left out, and said.
+    assert answer['meta']['controls_left_out'] == ['n']
