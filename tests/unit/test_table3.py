@@ -132,13 +132,21 @@ def test_the_papers_findings_are_judged_on_the_rows():
                                                                      0.2)},
              {'relative_threshold': 0.08, 'paper_rmse': dict.fromkeys(table3.PAPER_STATES,
                                                                      0.125)}]
-    claims = table3.check_claims(rows, 'MinQ+Qua-2P', sweep)
+    # The best by validation (Lin-2P here) needs 30 %; the paper's MinQ+Qua-2P 8 %.
+    loose = [dict(r, relative_threshold=0.3) if r['relative_threshold'] == 0.08 else r
+             for r in sweep]
+    sweeps = {'Lin-2P': loose, 'MinQ+Qua-2P': sweep}
+    claims = table3.check_claims(rows, 'Lin-2P', sweeps)
     assert claims['lstm_best']['holds']
     assert not claims['hybrids_close_behind_and_ahead_of_qlag']['holds']   # 0.05 > 1.5 x
     assert claims['minq_qua_best_hybrid']['holds']
-    assert claims['bounded_at_8_percent']['smallest_threshold_within_tolerance'] == 0.08
-    assert claims['bounded_at_8_percent']['holds']
+    bound = claims['bounded_at_8_percent']
+    assert bound['per_hybrid']['MinQ+Qua-2P']['smallest_threshold_within_tolerance'] == 0.08
+    assert bound['per_hybrid']['Lin-2P']['smallest_threshold_within_tolerance'] == 0.3
+    assert bound['holds']                                     # the finding names MinQ+Qua
+    claims = table3.check_claims(rows, 'Lin-2P', {'Lin-2P': loose})
+    assert not claims['bounded_at_8_percent']['holds']        # only the best was swept
     rows[1] = row('LSTM', 0.04, 0.08)
-    claims = table3.check_claims(rows, 'MinQ+Qua-2P', sweep)
+    claims = table3.check_claims(rows, 'MinQ+Qua-2P', {'MinQ+Qua-2P': sweep})
     assert not claims['lstm_best']['holds']
     assert claims['lstm_best']['lowest_trajectory'] == 'MinQ+Qua-2P'

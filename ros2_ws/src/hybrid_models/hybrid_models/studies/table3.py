@@ -51,6 +51,7 @@ PAPER_TABLE3 = {
     'MinQ+Qua-2P': (0.13, 0.12, 0.06, 0.14, 0.14, 0.06, 0.05),
 }
 PAPER_THRESHOLD = 0.08    # "MinQ+Qua-2P ... constrained to a relative threshold of ~8 %"
+PAPER_BOUNDED = 'MinQ+Qua-2P'   # the hybrid that finding names
 THRESHOLDS = (0.01, 0.02, 0.04, 0.08, 0.15, 0.3, 0.5)
 TOLERANCE = 0.05          # "comparable": every paper column within 5 % of unconstrained
 CLOSE = 1.5               # "close behind": a hybrid's trajectory within 1.5 x the LSTM's
@@ -237,13 +238,14 @@ def _traj(row) -> float | None:
     return None if row is None else row['metrics']['trajectory']['mean']
 
 
-def check_claims(rows: list[dict], best: str, sweep: list[dict]) -> dict:
+def check_claims(rows: list[dict], best: str, sweeps: dict[str, list[dict]]) -> dict:
     """
     Judge the paper's three findings on our rows (mean over seeds), and the bound's.
 
     1. the LSTM is best (lowest trajectory error and every paper RMSE column lowest);
     2. every 2P hybrid is close behind the LSTM (trajectory within ``CLOSE`` x) and ahead
-       of QLag; 3. MinQ+Qua-2P is the best hybrid; 4. the best hybrid bounded at about 8 %
+       of QLag; 3. MinQ+Qua-2P is the best hybrid; 4. MinQ+Qua-2P (and the best hybrid by
+       validation, ``sweeps`` holding each one's threshold sweep) bounded at about 8 %
        keeps its accuracy (every paper column within ``TOLERANCE`` of unconstrained).
     """
     by = {r['label']: r for r in rows}
@@ -268,13 +270,16 @@ def check_claims(rows: list[dict], best: str, sweep: list[dict]) -> dict:
     claims['minq_qua_best_hybrid'] = {'holds': best_traj['label'] == 'MinQ+Qua-2P',
                                       'best_by_test_trajectory': best_traj['label'],
                                       'best_by_validation': best}
-    free = next((r for r in sweep if r['relative_threshold'] is None), None)
-    smallest = None if free is None else smallest_threshold(
-        sweep, free['paper_rmse'], TOLERANCE, lambda row: row['paper_rmse'])
-    claims['bounded_at_8_percent'] = {
-        'holds': smallest is not None and smallest <= PAPER_THRESHOLD + 1e-9,
-        'smallest_threshold_within_tolerance': smallest, 'tolerance': TOLERANCE,
-        'sweep_of': best}
+    bounded = {}
+    for label, sweep in sweeps.items():
+        free = next((r for r in sweep if r['relative_threshold'] is None), None)
+        smallest = None if free is None else smallest_threshold(
+            sweep, free['paper_rmse'], TOLERANCE, lambda row: row['paper_rmse'])
+        bounded[label] = {'smallest_threshold_within_tolerance': smallest,
+                          'holds': smallest is not None and smallest <= PAPER_THRESHOLD + 1e-9}
+    named = bounded.get(PAPER_BOUNDED) or bounded[best]
+    claims['bounded_at_8_percent'] = {'holds': named['holds'], 'tolerance': TOLERANCE,
+                                      'per_hybrid': bounded}
     return claims
 
 
@@ -344,31 +349,33 @@ def plot_per_step(path: Path, rows: list[dict], spec: Vessel, labels: list[str])
     plt.close(fig)
 
 
-def plot_sweep(path: Path, sweep: list[dict], label: str) -> None:
+def plot_sweep(path: Path, sweeps: dict[str, list[dict]]) -> None:
     """Plot the paper's columns against the relative threshold (0: the physics alone)."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, len(PAPER_STATES), figsize=(3 * len(PAPER_STATES), 3.2))
-    free = next((r for r in sweep if r['relative_threshold'] is None), None)
-    rows = sorted((r for r in sweep if r['relative_threshold'] is not None),
-                  key=lambda r: r['relative_threshold'])
-    floor = min(r['relative_threshold'] for r in rows if r['relative_threshold'] > 0) / 2
-    x = [100 * (r['relative_threshold'] or floor) for r in rows]
-    for ax, name, head in zip(axes, PAPER_STATES, PAPER_HEAD, strict=True):
-        ax.plot(x, [r['paper_rmse'][name] or np.nan for r in rows], 'o-', ms=3,
-                label='bounded')
-        if free is not None:
-            ax.axhline(free['paper_rmse'][name] or np.nan, ls='--', color='k', lw=1,
-                       label='unconstrained')
-        ax.axvline(100 * PAPER_THRESHOLD, color='C3', lw=0.8, label='8 % (paper)')
+    for k, (label, sweep) in enumerate(sweeps.items()):
+        free = next((r for r in sweep if r['relative_threshold'] is None), None)
+        rows = sorted((r for r in sweep if r['relative_threshold'] is not None),
+                      key=lambda r: r['relative_threshold'])
+        floor = min(r['relative_threshold'] for r in rows if r['relative_threshold'] > 0) / 2
+        x = [100 * (r['relative_threshold'] or floor) for r in rows]
+        for ax, name in zip(axes, PAPER_STATES, strict=True):
+            ax.plot(x, [r['paper_rmse'][name] or np.nan for r in rows], 'o-', ms=3,
+                    color=f'C{k}', label=f'{label}, bounded')
+            if free is not None:
+                ax.axhline(free['paper_rmse'][name] or np.nan, ls='--', color=f'C{k}', lw=1,
+                           label=f'{label}, unconstrained')
+    for ax, head in zip(axes, PAPER_HEAD, strict=True):
+        ax.axvline(100 * PAPER_THRESHOLD, color='k', lw=0.8, ls=':', label='8 % (paper)')
         ax.set_xscale('log')
         ax.set_xlabel('relative threshold [%]')
         ax.set_title(f'RMSE {head}')
         ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle(f'{label} bounded at inference (leftmost: the physics alone)')
+    axes[0].legend(fontsize=6)
+    fig.suptitle('bounded at inference (leftmost point: the physics alone)')
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -402,10 +409,12 @@ def report(result: dict, tables: str) -> str:
                  f"trajectory: {best['best_by_test_trajectory']}; by validation: "
                  f"{best['best_by_validation']})")
     bound = c['bounded_at_8_percent']
-    lines.append(f"4. {bound['sweep_of']} bounded at about 8 % keeps its accuracy (every "
-                 f"paper column within {100 * bound['tolerance']:g} % of unconstrained): "
-                 f"**{bound['holds']}** (smallest such threshold: "
-                 f"{bound['smallest_threshold_within_tolerance']})")
+    lines.append(f"4. MinQ+Qua-2P bounded at about 8 % keeps its accuracy (every paper column "
+                 f"within {100 * bound['tolerance']:g} % of unconstrained): "
+                 f"**{bound['holds']}**")
+    for label, b in bound['per_hybrid'].items():
+        lines.append(f"   - {label}: smallest such threshold "
+                     f"{b['smallest_threshold_within_tolerance']}")
     lines += ['', '## Training cost', '', '| model | seconds per training (mean) |',
               '|---|---|']
     for row in result['rows']:
