@@ -185,11 +185,50 @@ def peer_row(peer: str, problems: list[FoldProblem], answers: list[Path], spec, 
     row = seed_row(label, metrics) if n_seeds > 1 else {
         'label': label, 'seeds': 1, 'metrics': metrics[0], 'spread': None}
     row['per_seed_metrics'] = metrics
+    if len(problems) > 1:   # each fold alone (a kind of manoeuvre held out, say)
+        row['per_fold'] = [_fold_figures(p, a, spec) for p, a in zip(problems, read,
+                                                                     strict=True)]
     row['peer'] = peer
     row['fit_seconds'] = [[float(x) for x in a['fit_seconds']] for a in read]
     row['forecast_seconds'] = [[float(x) for x in a['forecast_seconds']] for a in read]
     row['meta'] = [a['meta'] for a in read]
     return row
+
+
+def _fold_figures(problem: FoldProblem, answer: dict, spec) -> dict:
+    """One fold's trajectory error and error at the horizon per seed, diverged counted."""
+    out = {'fold': problem.index, 'forecasts': len(problem.truth), 'trajectory': [],
+           'final': [], 'diverged': []}
+    for pred in answer['pred']:
+        ok = np.isfinite(pred).all(axis=(1, 2))
+        out['diverged'].append(int((~ok).sum()))
+        m = forecast_metrics(pred[ok], problem.truth[ok], spec) if ok.any() else None
+        out['trajectory'].append(None if m is None else m['trajectory']['mean'])
+        out['final'].append(None if m is None else m['trajectory']['final_mean'])
+    return out
+
+
+def fold_table(summary: dict) -> str:
+    """Each peer per fold: error at the horizon (m), mean ± sd over seeds, diverged."""
+    peers_rows = [r for r in summary['rows'] if r.get('per_fold')]
+    if not peers_rows:
+        return ''
+    folds = summary['folds']
+    lines = ['| peer | ' + ' | '.join(f'fold {i} ({n} forecasts): at the horizon [m]'
+                                      for i, n in enumerate(
+                                          f['forecasts'] for f in peers_rows[0]['per_fold']))
+             + ' |', '|' + '---|' * (len(folds) + 1)]
+    for r in peers_rows:
+        cells = []
+        for f in r['per_fold']:
+            vals = [v for v in f['final'] if v is not None]
+            cell = _pm(float(np.mean(vals)) if vals else None,
+                       float(np.std(vals, ddof=1)) if len(vals) > 1 else None, 2)
+            if sum(f['diverged']):
+                cell += f" ({sum(f['diverged'])} diverged)"
+            cells.append(cell)
+        lines.append(f"| {r['label']} | " + ' | '.join(cells) + ' |')
+    return '\n'.join(lines) + '\n'
 
 
 def _fit_seconds(study: Path, result: dict, label: str, folds: list) -> list | None:
@@ -256,7 +295,8 @@ def study(study_dir: Path | None, out: Path, peers: list[str], seeds: list[int],
                'state_names': list(spec.state_names), 'rows': rows + ours,
                'peers': peers, 'quick': quick, 'options': options or {}}
     (out / 'results.json').write_text(json.dumps(summary, indent=1))
-    (out / 'table.md').write_text(table(summary))
+    (out / 'table.md').write_text(table(summary) + ('\n' + fold_table(summary)
+                                                    if len(problems) > 1 else ''))
     return summary
 
 
