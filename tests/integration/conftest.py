@@ -200,7 +200,7 @@ def wait_for(predicate, timeout: float) -> bool:
 class Graph:
     """A test node spun in a background thread, with what it hears."""
 
-    def __init__(self, name: str):
+    def __init__(self, name: str, state_topic: str | None = None):
         from diagnostic_msgs.msg import DiagnosticArray
         import rclpy
 
@@ -215,6 +215,14 @@ class Graph:
                                       .append((time.monotonic(), m)), 50)
         self.node.create_subscription(DiagnosticArray, '/diagnostics', lambda m: self
                                       .diagnostics.append((time.monotonic(), m)), 50)
+        self.state_stamps = []   # s, of the Odometry on state_topic, if given
+        if state_topic is not None:
+            from nav_msgs.msg import Odometry
+
+            from vessel_ros_bridge.messages import seconds_from_stamp
+
+            self.node.create_subscription(Odometry, state_topic, lambda m: self.state_stamps
+                                          .append(seconds_from_stamp(m.header.stamp)), 50)
         self.executor = MultiThreadedExecutor(num_threads=3, context=self.context)
         self.executor.add_node(self.node)
         self.thread = threading.Thread(target=self.executor.spin, daemon=True)
