@@ -306,6 +306,13 @@ def _pm(mean, sd, digits: int) -> str:
     return f'{mean:.{digits}f}' + ('' if sd is None else f' ± {sd:.{digits}f}')
 
 
+def _metres(values) -> int:
+    """Decimals of distances: two below 10 m, one below 100 m, none above."""
+    finite = [v for v in values if v is not None and np.isfinite(v)]
+    top = max(finite) if finite else 0.0
+    return 2 if top < 10 else 1 if top < 100 else 0
+
+
 def _digits(values) -> int:
     finite = [abs(v) for v in values if v is not None and np.isfinite(v) and v != 0]
     if not finite:
@@ -332,13 +339,14 @@ def table(summary: dict) -> str:
     head = ('| model | ' + ' | '.join(f'{s} RMSE' for s in states)
             + ' | trajectory error [m] | error at the horizon [m] | seeds | fit time [s] |')
     lines = [head, '|' + '---|' * (len(states) + 5)]
+    metres = _metres([r['metrics']['trajectory']['final_mean'] for r in rows])
     for r in rows:
         m, sd = r['metrics'], r.get('spread') or {}
         sd_rmse = sd.get('rmse') or {}
         sd_traj = sd.get('trajectory') or {}
         cells = [_pm(m['rmse'].get(s), sd_rmse.get(s), digits[s]) for s in states]
-        traj = _pm(m['trajectory']['mean'], sd_traj.get('mean'), 2)
-        final = _pm(m['trajectory']['final_mean'], sd_traj.get('final_mean'), 2)
+        traj = _pm(m['trajectory']['mean'], sd_traj.get('mean'), metres)
+        final = _pm(m['trajectory']['final_mean'], sd_traj.get('final_mean'), metres)
         if m.get('diverged') and m['trajectory']['mean'] is None:
             traj = final = 'diverged'
         label = r['label'] if r.get('peer') else f"ours: {r['label']}"
@@ -355,11 +363,12 @@ def profile_table(summary: dict) -> str:
     lines = ['| model | ' + ' | '.join(f'position error at {t:g} s [m]'
                                        for t in prof0['seconds'])
              + ' |', '|' + '---|' * (len(prof0['steps']) + 1)]
+    metres = _metres([v for r in rows for v in r['metrics']['profile']['position_m']])
     for r in rows:
         prof = r['metrics']['profile']
         sd = ((r.get('spread') or {}).get('profile') or {}).get('position_m') or [
             None] * len(prof['steps'])
-        cells = [_pm(v, s, 2) for v, s in zip(prof['position_m'], sd, strict=True)]
+        cells = [_pm(v, s, metres) for v, s in zip(prof['position_m'], sd, strict=True)]
         label = r['label'] if r.get('peer') else f"ours: {r['label']}"
         lines.append(f'| {label} | ' + ' | '.join(cells) + ' |')
     return '\n'.join(lines)
