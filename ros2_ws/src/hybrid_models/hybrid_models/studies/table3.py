@@ -68,7 +68,7 @@ class Job:
 
     @property
     def name(self) -> str:
-        """Return the training's folder name (label and seed)."""
+        """Return the training's folder: label/seed<n>."""
         return f'{self.label}/seed{self.seed}'
 
 
