@@ -34,15 +34,7 @@ def test_froude_powers_of_units():
     assert froude_power('1 (fraction of the term)') == 0
 
 
-# Families whose diagnosis library is still to be written: expected to fail on the missing
-# file, strictly, so that the mark must go when the library comes.
-NO_LIBRARY_YET = {'multirotor'}
-
-
-@pytest.mark.parametrize('family', [
-    pytest.param(f, marks=pytest.mark.xfail(strict=True, raises=LibraryError,
-                                            reason='no diagnosis library of the family yet'))
-    if f in NO_LIBRARY_YET else f for f in sorted(FAMILIES)])
+@pytest.mark.parametrize('family', sorted(FAMILIES))
 def test_every_family_has_a_library_of_its_own_terms(family):
     library = load_family_library(None, FAMILIES[family])
     assert library.family == family and len(library.candidates) >= 10

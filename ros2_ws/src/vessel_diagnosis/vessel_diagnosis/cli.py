@@ -2,17 +2,18 @@
 Diagnose where and why a nominal physics model departs from recordings, for any vessel.
 
 Locates the mismatch (residual maps against speed, turn rate, apparent wind, sea state
-and heading; departing time windows), names the missing physics (sparse regression over
-a library of named candidate terms of the physics' family, block-bootstrap inclusion
-probabilities, 95 % intervals that widen where the runs disagree, aliases that cannot be
-told apart), writes an augmented physics (nominal plus the terms found) and shows
-one-step and forecast errors before and after on held-out recordings.
+and heading, a 6-DOF vehicle's heave speed and tilt; departing time windows), names the
+missing physics (sparse regression over a library of named candidate terms of the
+physics' family, block-bootstrap inclusion probabilities, 95 % intervals that widen where
+the runs disagree, aliases that cannot be told apart), writes an augmented physics
+(nominal plus the terms found) and shows one-step and forecast errors before and after on
+held-out recordings.
 docs/diagnosis.md explains the method and the output.
 
 The nominal physics may be of any family (vessel_physics: the patrol boat's 4-DOF
-terms, the MMG standard model, the Fossen matrix model); without --physics it is the one
-the vessel file names. Each family brings its candidate library
-(config/library/FAMILY.yaml) and its settings (config/families/FAMILY.yaml over
+terms, the MMG standard model, the Fossen matrix model, the multirotor's rigid body);
+without --physics it is the one the vessel file names. Each family brings its candidate
+library (config/library/FAMILY.yaml) and its settings (config/families/FAMILY.yaml over
 config/diagnosis.yaml; --config overrides).
 
 Writes REPORT_DIR/report.md with PNG figures, REPORT_DIR/findings.json (every number;
@@ -22,7 +23,8 @@ augmented_parameters.yaml and augmented_simulation.yaml. Progress goes to stderr
 one-line summary to stdout.
 
 Before anything is fitted, the recordings must fit the vessel file's scale (Froude
-number, turning rate, limits; --skip-scale-check overrides), and only candidates the
+number, turning rate, limits; a 6-DOF vehicle's limits only; --skip-scale-check
+overrides), and only candidates the
 vessel can have are tried (no wind without a wind sensor, no current in a basin, no roll
 terms without roll states).
 

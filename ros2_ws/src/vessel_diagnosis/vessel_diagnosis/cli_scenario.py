@@ -4,15 +4,18 @@ Simulate "real" recordings with a concealed effect, and the nominal physics that
     python offline/simulate_scenario.py --list
     python offline/simulate_scenario.py --scenario fouling --runs 20 --hours 1 --seed 5 --out DIR
     python offline/simulate_scenario.py --vessel otter --scenario weak_thruster --out DIR
+    python offline/simulate_scenario.py --vessel crazyflie_brushless --scenario weak_motor \
+        --runs 12 --seconds 40 --out DIR
 
 Scenarios (``vessel_diagnosis/config/scenarios.yaml``), per vessel -- one of each physics
-family: the patrol boat (default), the KVLCC2 model (MMG), the Otter (Fossen) --: the
-simulator plus an effect the nominal physics does not have (a current, hull fouling,
-missing wind loads, a rudder offset, added resistance, a weak thruster; ``control`` has
-none). Writes a dataset (docs/conventions.md, split 60/10/30 by run) and
-``DIR/nominal_physics.yaml``: what ``offline/diagnose.py`` and
-``offline/compare_physics.py`` are given. The manifest keeps every run's true sea state,
-wind and current. Exit codes: 0 done, 1 bad scenario or output, 2 bad arguments.
+family: the patrol boat (default), the KVLCC2 model (MMG), the Otter (Fossen), the
+Crazyflie (multirotor) --: the simulator plus an effect the nominal physics does not
+have (a current, hull fouling, missing wind loads, a rudder offset, added resistance, a
+weak thruster, a weak rotor, a payload; ``control`` has none). Writes a dataset
+(docs/conventions.md, split 60/10/30 by run) and ``DIR/nominal_physics.yaml``: what
+``offline/diagnose.py`` and ``offline/compare_physics.py`` are given. The manifest keeps
+every run's true sea state, wind and current (a multirotor's: its trajectory kind and
+settings). Exit codes: 0 done, 1 bad scenario or output, 2 bad arguments.
 """
 
 import argparse
@@ -57,7 +60,9 @@ def main(argv=None) -> int:
                         help=f'vessel whose scenarios to use (default {DEFAULT_VESSEL})')
     parser.add_argument('--list', action='store_true', help='list the scenarios and exit')
     parser.add_argument('--runs', type=int, default=20, help='number of runs (default 20)')
-    parser.add_argument('--hours', type=float, default=1.0, help='hours per run (default 1)')
+    parser.add_argument('--hours', type=float, default=None, help='hours per run (default 1)')
+    parser.add_argument('--seconds', type=float, default=None,
+                        help='seconds per run instead of --hours (a flight of a minute)')
     parser.add_argument('--seed', type=int, default=0, help='random seed (default 0)')
     parser.add_argument('--out', type=Path, help='output dataset directory')
     args = parser.parse_args(argv)
@@ -80,8 +85,13 @@ def main(argv=None) -> int:
     scenarios = vessels[args.vessel]['scenarios']
     if not args.scenario or args.out is None:
         parser.error('--scenario and --out are required (or --list)')
+    if args.hours is not None and args.seconds is not None:
+        parser.error('give --hours or --seconds, not both')
+    args.hours = (args.seconds / 3600.0 if args.seconds is not None
+                  else 1.0 if args.hours is None else args.hours)
     if args.runs < 1 or not args.hours > 0:
-        parser.error(f'--runs must be >= 1 and --hours > 0, got {args.runs} and {args.hours}')
+        parser.error(f'--runs must be >= 1 and --hours (--seconds) > 0, got {args.runs} and '
+                     f'{args.hours}')
     if args.scenario not in scenarios:
         print(f'simulate_scenario: error: unknown scenario {args.scenario!r} of vessel '
               f'{args.vessel}; known: {", ".join(scenarios)}', file=sys.stderr)
@@ -91,7 +101,8 @@ def main(argv=None) -> int:
               f'directory', file=sys.stderr)
         return 1
     print(f'simulating scenario {args.scenario!r} of {args.vessel}: {args.runs} runs x '
-          f'{args.hours:g} h (seed {args.seed})', file=sys.stderr)
+          + (f'{args.seconds:g} s' if args.seconds is not None else f'{args.hours:g} h')
+          + f' (seed {args.seed})', file=sys.stderr)
     start = time.monotonic()
     try:
         out = simulate_scenario(args.scenario, args.out, args.runs, args.hours, args.seed,

@@ -18,7 +18,10 @@ the effect their own way, not with the candidate term the diagnosis will use to 
 - ``added_resistance`` (KVLCC2, MMG): ``share`` of the published resistance as a force
   -share R_0' rho/2 L d u|u|, where the MMG model's R_0' acts with U^2 = u^2 + v^2;
 - ``actuator_share`` (the Otter's port thruster): one actuator gives ``share`` of its
-  contribution to the vessel's ``term`` (the loss acts where the actuator does).
+  contribution to the vessel's ``term`` (the loss acts where the actuator does);
+- ``rotor_share`` (a rotor of the Crazyflie): one rotor gives ``share`` of its
+  contribution to each of the family's force ``terms`` (its thrust and drag torque: a
+  chipped propeller), evaluated with the rotor stopped and running.
 """
 
 from __future__ import annotations
@@ -51,13 +54,14 @@ def _vessel_physics(effect: dict):
     return _load(effect['vessel'], effect.get('physics'))
 
 
-def _term_force(effect: dict, state: dict, controls: dict) -> np.ndarray:
-    """Return the effect's ``term`` of its vessel's physics at these states and actuators."""
+def _term_force(effect: dict, state: dict, controls: dict, term: str | None = None
+                ) -> np.ndarray:
+    """Return ``term`` (default the effect's) of its vessel's physics at these states."""
     vessel, physics = _vessel_physics(effect)
     z = np.stack([state[WATER_VELOCITY.get(s, s)] for s in vessel.state_names], axis=-1)
     zeros = np.zeros_like(z[:, 0])
     c = np.stack([controls.get(name, zeros) for name in vessel.control_names], axis=-1)
-    return physics.term_force(effect['term'], z, c)
+    return physics.term_force(term or effect['term'], z, c)
 
 
 def ittc_friction_coefficient(speed, length: float, viscosity: float):
@@ -100,4 +104,13 @@ def actuator_share(t, state, controls, environment) -> np.ndarray:
     cfg = _effects()['actuator_share']
     without = {**controls, cfg['actuator']: np.zeros_like(controls[cfg['actuator']])}
     contribution = _term_force(cfg, state, controls) - _term_force(cfg, state, without)
+    return -(1.0 - cfg['share']) * contribution
+
+
+def rotor_share(t, state, controls, environment) -> np.ndarray:
+    """Return the share of one rotor's thrust and torque its vehicle does not get."""
+    cfg = _effects()['rotor_share']
+    without = {**controls, cfg['actuator']: np.zeros_like(controls[cfg['actuator']])}
+    contribution = sum(_term_force(cfg, state, controls, term)
+                       - _term_force(cfg, state, without, term) for term in cfg['terms'])
     return -(1.0 - cfg['share']) * contribution

@@ -12,7 +12,10 @@ at what is left. It stops when a round adds nothing.
 Pruning. A term stays only if leaving it out makes held-out predictions worse by at least
 ``min_improvement`` for some state: bootstrap blocks alternate between folds, the
 coefficients are refitted on one fold and predict the other; the weakest term goes first,
-the rest are refitted, and again until every term earns its place. Of two candidates
+the rest are refitted, and again until every term earns its place. Then plausibility:
+a parameter correction that flips its sign, exceeds ``max_parameter_change`` times its
+nominal size or needs a value outside its valid range goes, one at a time when several
+do (the furthest out first; the rest are refitted). Of two candidates
 that explain the same thing only one survives this, and the other is reported as an
 alias: a candidate outside the model that explains at least ``alias_share`` of what a
 kept term explains cannot be told apart from it by these recordings. A term the
@@ -218,6 +221,9 @@ class Identifier:
         self.settings = settings
         self.say = progress or (lambda message: None)
         self.pruned_gain: dict[str, float] = {}
+        # Coefficients the last refit held because the fit would take their parameter out
+        # of its valid range (a drag coefficient below zero): name -> why.
+        self.out_of_range: dict[str, str] = {}
 
     # ------------------------------------------------------------------ helpers
     def _columns(self, runs: Sequence[str], names: Sequence[str] | None = None):
@@ -264,33 +270,64 @@ class Identifier:
         design = self._design(segments, point, columns)
         if iterations is None:
             iterations = self.settings.selection.gauss_newton_iterations
+        self.out_of_range = {}
         for _ in range(iterations):
             X, y, _ = design.stacked()
             before = float(y @ y)
             norm = np.sqrt(np.mean(X ** 2, axis=0))
             norm = np.where(norm > 0, norm, 1.0)
             G = (X / norm).T @ (X / norm)
-            delta = least_squares(G, (X / norm).T @ y, np.ones(len(columns), bool)) / norm
-            accepted = None
-            for halving in range(MAX_HALVINGS + 1):
-                trial = point.moved(columns, delta, 0.5 ** halving)
-                try:
-                    with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
-                        trial_design = self._design(segments, trial, columns)
-                except ConfigError:      # a step out of a parameter's valid range
-                    continue
-                # The weights (1/sigma) change with the point; compare at the old weights.
-                scaled = (trial_design.y / design.sigma).reshape(-1)
-                score = float(scaled @ scaled)
-                if np.isfinite(score) and np.isfinite(trial_design.X).all() and score <= before:
-                    accepted = trial, trial_design
-                    break
+            free = np.ones(len(columns), bool)
+            delta = least_squares(G, (X / norm).T @ y, free) / norm
+            accepted = self._step(segments, point, columns, delta, design.sigma, before)
+            if accepted is None:
+                # No halving was accepted. Coefficients whose own move leaves their
+                # parameter's valid range even at the smallest halving (a drag coefficient
+                # at zero the data would take below it) block every trial: hold them and
+                # solve for the others.
+                blocked = self._leaving_range(point, columns, delta * 0.5 ** MAX_HALVINGS)
+                if blocked:
+                    self.out_of_range.update(blocked)
+                    free &= np.array([c.candidate not in blocked for c in columns])
+                    delta = least_squares(G, (X / norm).T @ y, free) / norm
+                    accepted = self._step(segments, point, columns, delta, design.sigma,
+                                          before)
             if accepted is None:     # no step along delta improves the fit: converged
                 break
             point, design = accepted
             if np.max(np.abs(delta) / np.maximum(design.scales, 1e-300)) < 1e-3:
                 break
         return point, design
+
+    def _step(self, segments: Segments, point: Point, columns, delta: np.ndarray,
+              sigma: np.ndarray, before: float) -> tuple[Point, Design] | None:
+        """Return the first of ``delta``'s halvings that fits no worse, with its design."""
+        for halving in range(MAX_HALVINGS + 1):
+            trial = point.moved(columns, delta, 0.5 ** halving)
+            try:
+                with np.errstate(over='ignore', invalid='ignore', divide='ignore'):
+                    trial_design = self._design(segments, trial, columns)
+            except ConfigError:      # a step out of a parameter's valid range
+                continue
+            # The weights (1/sigma) change with the point; compare at the old weights.
+            scaled = (trial_design.y / sigma).reshape(-1)
+            score = float(scaled @ scaled)
+            if np.isfinite(score) and np.isfinite(trial_design.X).all() and score <= before:
+                return trial, trial_design
+        return None
+
+    def _leaving_range(self, point: Point, columns, delta: np.ndarray) -> dict[str, str]:
+        """Return the coefficients whose move by ``delta`` alone is out of range, and why."""
+        out = {}
+        for col, d in zip(columns, delta, strict=True):
+            if col.per_run or self.library.by_name[col.candidate].kind != 'parameter':
+                continue
+            moved = {**point.theta, col.candidate: point.theta.get(col.candidate, 0.0) + d}
+            try:
+                self.library.apply(self.nominal, moved)
+            except ConfigError as exc:
+                out[col.candidate] = ' '.join(str(exc).split())
+        return out
 
     @staticmethod
     def _folds(design: Design, segments: Segments, folds: int) -> np.ndarray:
@@ -374,12 +411,21 @@ class Identifier:
         return kept, (gains if kept else {}), pruned
 
     def implausible(self, point: Point, names: Sequence[str]) -> dict[str, str]:
-        """Parameter corrections that flip a parameter's sign or exceed the allowed change."""
+        """
+        Parameter corrections that flip a parameter's sign or exceed the allowed change.
+
+        Also those the last refit had to hold at the edge of their valid range: the data
+        ask for a value the parameter cannot take (a negative drag coefficient).
+        """
         limit = self.settings.validation.max_parameter_change
         out = {}
         for name in names:
             cand = self.library.by_name[name]
             if cand.kind != 'parameter':
+                continue
+            if name in self.out_of_range:
+                out[name] = (f'implausible: the fit would take {cand.target} out of its '
+                             f'valid range ({self.out_of_range[name]})')
                 continue
             nominal = self.nominal.parameter(cand.target)
             change = point.theta.get(name, 0.0)
@@ -389,6 +435,15 @@ class Identifier:
                              f'{nominal + change:.4g} (a sign change or more than '
                              f'{limit:g} times its nominal size away)')
         return out
+
+    def _excess(self, point: Point, name: str) -> float:
+        """Return how far a parameter's correction lies out (inf: its range or sign left)."""
+        nominal = self.nominal.parameter(self.library.by_name[name].target)
+        change = point.theta.get(name, 0.0)
+        if name in self.out_of_range or nominal == 0 or np.sign(nominal + change) != np.sign(
+                nominal):
+            return float('inf')
+        return abs(change / nominal)
 
     def intervals(self, design: Design, segments: Segments, point: Point):
         """
@@ -587,6 +642,13 @@ class Identifier:
             implausible = self.implausible(point, kept)
             if not implausible:
                 break
+            if len(implausible) > 1:
+                # Two look-alikes in the model drift together along what the recordings
+                # cannot tell apart (a payload's mass and the rotors' thrust coefficient,
+                # whose ratio alone the motion fixes): the one furthest out goes, the
+                # other is refitted alone and checked again.
+                worst = max(implausible, key=lambda n: self._excess(point, n))
+                implausible = {worst: implausible[worst]}
             for name, why in implausible.items():
                 self.say(f'  pruned {name}: {why}')
                 pruned[name] = why

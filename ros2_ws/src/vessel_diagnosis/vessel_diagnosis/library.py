@@ -45,6 +45,8 @@ CATEGORIES = {
     'static_bias': 'constant generalized force (list, asymmetric hull or appendage)',
     'wind': 'wind loads in the apparent wind',
     'current': 'steady ocean current (offset between ground and water velocity)',
+    'rigid_body': 'mass and inertia of the rigid body (a payload, another battery)',
+    'aerodynamics': "rotor drag, induced inflow, translational lift and the frame's drag",
 }
 
 

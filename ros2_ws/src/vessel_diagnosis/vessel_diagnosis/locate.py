@@ -13,9 +13,11 @@ Residuals of the nominal physics on the diagnosis runs:
 Regime variables per sample: speed u (m/s), turn rate r (deg/s), apparent wind angle
 gamma_r (deg, where the apparent wind comes from, + starboard) and speed (m/s) where the
 vessel measures the wind, sea state (significant wave height from the recordings'
-metadata when every run has it, else, for a vessel with roll, a roll-motion proxy: the
-rolling standard deviation of roll minus its 60-s mean, deg) and heading (deg from
-north). Maps bin each residual against each regime variable (bin mean
+metadata when every run has it, else, for a vessel with roll in a family that feels
+waves, a roll-motion proxy: the rolling standard deviation of roll minus its 60-s mean,
+deg) and heading (deg from north); a 6-DOF vehicle adds its heave speed w (m/s) and its
+tilt from the vertical, arccos(cos phi cos theta) (deg): a multirotor's roll is its
+manoeuvring, not a sea. Maps bin each residual against each regime variable (bin mean
 with a 95 % interval from the effective sample size); the correlation ratio eta^2 (the
 share of the residual's variance the bins explain) ranks how strongly a residual depends
 on a regime. Heading also gets eta^2 within runs, because a current's signature (a
@@ -49,16 +51,27 @@ REGIMES = {
     'sea_state': 'sea state (metadata Hs, else a roll-motion proxy)',
     'heading': 'heading (deg from north)',
 }
+SPATIAL_REGIMES = {                  # a 6-DOF vehicle's (Vessel.is_spatial)
+    'heave': 'heave speed w (m/s)',
+    'tilt': 'tilt from the vertical (deg)',
+}
 ROLL_MEAN_S = 60.0   # roll is compared with its own running mean over this span (proxy)
 
 
-def regimes_for(vessel: Vessel, runs: Sequence[Run]) -> dict[str, str]:
+def _roll_proxy(vessel: Vessel, family) -> bool:
+    """Whether roll motion measures the sea: a vessel with roll in a family with waves."""
+    return vessel.has_roll and (family is None or 'waves' in family.environment)
+
+
+def regimes_for(vessel: Vessel, runs: Sequence[Run], family=None) -> dict[str, str]:
     """Return the regimes a vessel's recordings can be mapped against (module docstring)."""
     out = dict(REGIMES)
     if 'wind' not in vessel.environment:
         del out['wind_angle'], out['wind_speed']
-    if not vessel.has_roll and not all('wave_hs_m' in r.info for r in runs):
+    if not _roll_proxy(vessel, family) and not all('wave_hs_m' in r.info for r in runs):
         del out['sea_state']
+    if vessel.is_spatial:
+        out.update(SPATIAL_REGIMES)
     return out
 
 
@@ -98,7 +111,7 @@ class Residuals:
                 else 'sea state, roll proxy (deg)')
 
 
-def sea_state(runs: Sequence[Run], window_s: float, vessel: Vessel
+def sea_state(runs: Sequence[Run], window_s: float, vessel: Vessel, family=None
               ) -> tuple[list[np.ndarray], str]:
     """Per-sample sea state of each run: metadata Hs (m) when all runs have it, else proxy."""
     if all('wave_hs_m' in r.info for r in runs):
@@ -106,6 +119,9 @@ def sea_state(runs: Sequence[Run], window_s: float, vessel: Vessel
                 "significant wave height Hs (m, from the recordings' metadata)")
     if not vessel.has_roll:
         return [np.zeros(r.length) for r in runs], 'none (no roll states, no metadata)'
+    if not _roll_proxy(vessel, family):
+        return ([np.zeros(r.length) for r in runs],
+                f'none (the {family.title} feels no waves, and no metadata)')
     out = []
     for run in runs:
         n_mean = max(3, int(round(ROLL_MEAN_S / run.dt)) | 1)
@@ -126,6 +142,11 @@ def regimes_of(run: Run, rows: np.ndarray, sea: np.ndarray, vessel: Vessel,
     u, v = z[:, vessel.state_index('u')], z[:, vessel.state_index('v')]
     out = {'speed': u, 'turn_rate': np.degrees(z[:, vessel.state_index('r')]),
            'sea_state': sea[rows], 'heading': np.degrees(np.mod(run.psi[rows], 2 * np.pi))}
+    if vessel.is_spatial:
+        out['heave'] = z[:, vessel.state_index('w')]
+        out['tilt'] = np.degrees(np.arccos(np.clip(
+            np.cos(z[:, vessel.state_index('phi')]) * np.cos(z[:, vessel.state_index('theta')]),
+            -1.0, 1.0)))
     if 'wind_angle' in regimes:
         speed = c[:, vessel.control_index('wind_speed')]
         from_x = speed * c[:, vessel.control_index('wind_dir_cos')] + u
@@ -140,8 +161,8 @@ def compute_residuals(runs: Sequence[Run], physics: Physics, settings,
     """Nominal one-step, force and multistep residuals with their regimes."""
     dt = runs[0].dt
     predictor = Predictor(physics, dt, settings.prediction.substeps)
-    seas, label = sea_state(runs, settings.locate.sea_state_window_s, vessel)
-    regimes = regimes_for(vessel, runs)
+    seas, label = sea_state(runs, settings.locate.sea_state_window_s, vessel, physics.family)
+    regimes = regimes_for(vessel, runs, physics.family)
     one, reg, run_idx, time = [], [], [], []
     for i, run in enumerate(runs):
         pred = predictor.one_step(run.z[:-1], run.psi[:-1], run.c[:-1], run.c[1:])

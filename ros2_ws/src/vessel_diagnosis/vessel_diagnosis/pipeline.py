@@ -264,7 +264,7 @@ def diagnose(recordings: Sequence[str | Path], physics: str | Path | Physics | N
               'window_s': settings.locate.window_s, 'window_flag': settings.locate.window_flag,
               'multistep_horizon_s': settings.residuals.multistep_horizon_s,
               'sea_state': residuals.sea_state_label,
-              'regimes': {**regimes_for(vessel, diag),
+              'regimes': {**regimes_for(vessel, diag, nominal.family),
                           **({'sea_state': residuals.sea_state_axis}
                              if 'sea_state' in residuals.regimes else {})}}
     timing['locate'] = time.perf_counter() - t0

@@ -4,7 +4,8 @@ Batch predictions of a physics of any family (numpy): one step, and multistep.
 The model integrates the family's equation of motion in the vessel's vectors
 (``Physics.derivative``: M nu_r' = physics.force(nu_r, c, nu_ground) and its kinematic
 states, e.g. phi' = p) and psi' = r cos phi (Fossen 2011; the simulator's kinematics;
-cos phi = 1 without roll) with classical RK4 sub-steps over each sample period. States
+cos phi = 1 without roll; a 6-DOF vehicle's psi' = (q sin phi + r cos phi) / cos theta,
+``integrator.attitude_rates``) with classical RK4 sub-steps over each sample period. States
 and outputs are body velocities OVER GROUND, as measured; with a current (north, east
 in m/s, constant over a prediction) the model integrates the velocity through the water
 nu_r = nu_ground - (u_c, v_c), where (u_c, v_c) = V_c rotated into the levelled body
@@ -26,7 +27,7 @@ import numpy as np
 
 from vessel_physics.family import Physics
 from vessel_physics.frames import ned_to_body
-from vessel_physics.integrator import rk4_step
+from vessel_physics.integrator import attitude_rates, rk4_step
 
 
 def body_current(current: np.ndarray | None, psi: np.ndarray):
@@ -65,6 +66,9 @@ class Predictor:
         self.n_state, self.n_dof = len(states), len(physics.family.dofs)
         self.u, self.v, self.r = (states.index(s) for s in ('u', 'v', 'r'))
         self.phi = states.index('phi') if 'phi' in states else None
+        # A 6-DOF vehicle's heading follows its pitch and roll rates too.
+        self.spatial = (tuple(states.index(s) for s in ('p', 'q', 'theta'))
+                        if 'theta' in states else None)
         self.psi = self.n_state     # x = [z (over ground or through the water), psi]
 
     def derivative(self, x: np.ndarray, c: np.ndarray, current: np.ndarray | None):
@@ -85,8 +89,13 @@ class Predictor:
         for rows, variant in self._blocks:
             if variant.minv_t is not None:   # a candidate that changes the mass matrix
                 dx[rows, :self.n_dof] = tau[rows] @ variant.minv_t
-        roll = np.cos(x[:, self.phi]) if self.phi is not None else 1.0
-        dx[:, self.psi] = x[:, self.r] * roll
+        if self.spatial is not None:
+            p, q, theta = self.spatial
+            dx[:, self.psi] = attitude_rates(x[:, p], x[:, q], x[:, self.r], x[:, self.phi],
+                                             x[:, theta])[2]
+        else:
+            roll = np.cos(x[:, self.phi]) if self.phi is not None else 1.0
+            dx[:, self.psi] = x[:, self.r] * roll
         return dx
 
     def _advance(self, x, c0, c1, current):

@@ -288,7 +288,11 @@ def _vessel_lines(result: dict) -> list[str]:
              f'{", ".join(vessel["states"])}; environment '
              f'{", ".join(vessel["environment"]) or "none"}; waters {vessel["waters"]}; '
              f'length {vessel["length_m"]:g} m.']
-    if scale:
+    if scale and scale.get('froude') is None:      # a 6-DOF vehicle: its limits only
+        lines[0] += (f' Scale check{"" if scale["checked"] else " (skipped)"}: the states '
+                     f'within the limits of the vehicle file (a 6-DOF vehicle has no hull '
+                     f'speed or turning radius to judge).')
+    elif scale:
         lines[0] += (f' Scale check{"" if scale["checked"] else " (skipped)"}: Froude number '
                      f'{scale["froude"]:.2f}, turning rate r L / U {scale["turning_rate"]:.2f} '
                      f'({100 * scale["quantile"]:g} % quantiles).')
@@ -306,7 +310,7 @@ def _locate_section(loc: dict, result: dict) -> list[str]:
     states, _, dofs, dof_units = _vectors(result)
     summ = loc['summary']
     lines += ['| residual | ' + ' | '.join(states) + ' |', '|---|' + '---|' * len(states)]
-    horizon = f'{loc["multistep_horizon_s"]:.0f}-s RMS'
+    horizon = f'{loc["multistep_horizon_s"]:g}-s RMS'
     for kind, label in (('one_step', 'one-step RMS'), ('multistep', horizon)):
         if summ.get(kind):
             lines.append(f'| {label} | '

@@ -14,6 +14,10 @@ dimensionless figures of the recordings against thresholds of the settings
   its length, so r' above ``max_turning_rate`` means L is too large for the recordings;
 - the vessel file's ``limits``: a state whose high quantile lies beyond its limit by more
   than ``limits_margin`` times the limit span.
+
+A 6-DOF vehicle (``Vessel.is_spatial``: a multirotor) has no hull whose speed and
+turning radius its length bounds: it hovers, turns on the spot and flies sideways. Only
+its limits are checked; its Froude number and turning rate are None.
 """
 
 from __future__ import annotations
@@ -43,6 +47,8 @@ def scale_figures(runs: Sequence[Run], vessel: Vessel, cfg) -> dict:
     yaw_rate = z[moving, states.index('r')]
     turning = (float(np.quantile(np.abs(yaw_rate) * length / speed[moving], cfg.quantile))
                if moving.any() and top_speed > 0 else 0.0)
+    if vessel.is_spatial:      # no hull: the figure would judge nothing (module doc)
+        turning = None
     excess = {}
     for state, (low, high) in vessel.limits.items():
         if state not in states:
@@ -52,19 +58,19 @@ def scale_figures(runs: Sequence[Run], vessel: Vessel, cfg) -> dict:
         lo = float(np.quantile(values, 1.0 - cfg.quantile))
         excess[state] = max(hi - high, low - lo, 0.0) / (high - low)
     return {'length_m': length, 'speed_mps': top_speed,
-            'froude': top_speed / np.sqrt(GRAVITY * length), 'turning_rate': turning,
-            'limit_excess': excess, 'quantile': cfg.quantile}
+            'froude': None if vessel.is_spatial else top_speed / np.sqrt(GRAVITY * length),
+            'turning_rate': turning, 'limit_excess': excess, 'quantile': cfg.quantile}
 
 
 def scale_problems(figures: dict, vessel: Vessel, cfg) -> list[str]:
     """Return what is implausible about the figures (empty when the scales agree)."""
     out = []
     length = figures['length_m']
-    if figures['froude'] > cfg.max_froude:
+    if figures['froude'] is not None and figures['froude'] > cfg.max_froude:
         out.append(f'speeds up to {figures["speed_mps"]:.2f} m/s give Froude number '
                    f'{figures["froude"]:.2f} for length_m {length:g} (no hull exceeds '
                    f'{cfg.max_froude:g})')
-    if figures['turning_rate'] > cfg.max_turning_rate:
+    if figures['turning_rate'] is not None and figures['turning_rate'] > cfg.max_turning_rate:
         out.append(f'turns of {figures["turning_rate"]:.2f} ship lengths per radius '
                    f'(r L / U) for length_m {length:g} (no ship exceeds '
                    f'{cfg.max_turning_rate:g})')

@@ -2,12 +2,13 @@
 Concealed-effect scenarios (config/scenarios.yaml) and their simulated recordings.
 
 Each vessel of the file (one per physics family: the patrol boat, the KVLCC2 model, the
-Otter) has its scenarios. ``simulate_scenario(name, out, runs, hours, seed, vessel=...)``
-writes a dataset (the format of ``vessel_datasets.format``) from the simulator with the
-scenario's effect, plus ``nominal_physics.yaml`` (and its parameter file) beside it: the
-physics that lacks the effect. The manifest keeps every run's sea state, wind, current
-and, where the scenario spreads parameters over runs, their values (the truth, for
-checking what was found).
+Otter, the Crazyflie) has its scenarios. ``simulate_scenario(name, out, runs, hours,
+seed, vessel=...)`` writes a dataset (the format of ``vessel_datasets.format``) from the
+simulator with the scenario's effect, plus ``nominal_physics.yaml`` (and its parameter
+file) beside it: the physics that lacks the effect. The manifest keeps every run's sea
+state, wind, current (a multirotor's trajectory kind and settings) and, where the
+scenario spreads parameters over runs, their values (the truth, for checking what was
+found).
 """
 
 from __future__ import annotations
@@ -141,6 +142,8 @@ def simulate_scenario(name: str, out: str | Path, runs: int, hours: float, seed:
             if sim.waves.active:
                 source.update({'wave_hs_m': float(sim.waves.hs[j]),
                                'wave_tp_s': float(sim.waves.tp[j])})
+            if sim.flies:          # a multirotor's trajectory kind and its settings
+                source.update(sim.operator.trajectories.describe(j))
             sources[run_id] = source
     provenance = {'tool': 'vessel_diagnosis.scenarios', 'scenario': name, 'vessel': vessel,
                   'description': scenario.description, 'expect': list(scenario.expect),
