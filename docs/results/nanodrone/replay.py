@@ -29,6 +29,7 @@ import time
 import numpy as np
 
 ROTORS = ('m1', 'm2', 'm3', 'm4')
+VEHICLE = 'crazyflie_brushless'
 
 
 def main() -> int:
@@ -56,15 +57,17 @@ def main() -> int:
     from hybrid_predictor_interfaces.srv import Predict
     from vessel_datasets.format import read_dataset
     from vessel_datasets.topic_map import topic_map_for
+    from vessel_description import load_vessel
 
     ds = read_dataset(args.dataset)
     if args.run not in ds.run_ids('test'):
         raise SystemExit(f'replay: error: {args.run} is no test run of {args.dataset} '
                          f'(test runs: {", ".join(ds.run_ids("test"))})')
-    vehicle = ds.vessel
     table = ds.load(args.run)
     table = table[table['t'] <= args.seconds]
-    topic_map = topic_map_for(vehicle)
+    # The topics are the vehicle file's (the dataset's manifest keeps its states, not how
+    # a live craft publishes them): the file the predictor is started with.
+    topic_map = topic_map_for(load_vessel(VEHICLE))
 
     def plan(speeds, units='rad/s', names=ROTORS):
         return ControlPlan(control_names=list(names), control_units=[units] * len(names),
@@ -73,7 +76,7 @@ def main() -> int:
     logs = Path(tempfile.mkdtemp(prefix='nanodrone_replay_'))
     with Children(logs) as children:
         predictor = children.node('hybrid_predictor', 'predictor', params={
-            'model_path': str(args.model), 'vessel': 'crazyflie_brushless',
+            'model_path': str(args.model), 'vessel': VEHICLE,
             'forecast_period': 0.0})
         rclpy.init(**rclpy_options())
         node = rclpy.create_node('nanodrone_replay')
