@@ -4,13 +4,15 @@
 # Usage (repo root, after `make setup`): docs/results/nanodrone/run.sh [WORK] [STEP...]
 #   WORK: where datasets and trainings go (default /tmp/real/nanodrone); STEP: any of
 #   convert peers paper benchmark simulate sim sim_benchmark (default all, in that order).
-#   Nothing of the flights is committed; re-running resumes the trainings.
+#   Nothing of the flights is committed; re-running resumes the trainings. SEEDS=n
+#   (default 5) trains fewer seeds per model, for a shorter run.
 # Time on the 2-core machine: conversion seconds, peers ~2 min, simulation ~1 min, each
 # Table 3 ~1-1.5 h.
 set -euo pipefail
 WORK="${1:-/tmp/real/nanodrone}"
 shift || true
 STEPS="${*:-convert peers paper benchmark simulate sim sim_benchmark}"
+SEEDS="${SEEDS:-5}"
 OUT=docs/results/nanodrone
 REAL=../shared/real/nanodrone
 run() { tools/with_env.sh "$@"; }
@@ -39,11 +41,11 @@ if has peers; then
 fi
 if has paper; then
   run python offline/reproduce_table3.py --dataset "$WORK/paper_ds" --out "$OUT/paper" \
-    --work "$WORK/paper_runs" --seeds 5
+    --work "$WORK/paper_runs" --seeds "$SEEDS"
 fi
 if has benchmark; then
   run python offline/reproduce_table3.py --dataset "$WORK/benchmark_ds" \
-    --out "$OUT/benchmark" --work "$WORK/benchmark_runs" --seeds 5 --horizon 50 \
+    --out "$OUT/benchmark" --work "$WORK/benchmark_runs" --seeds "$SEEDS" --horizon 50 \
     --stride 1 --peers "$WORK/peers.npz"
 fi
 # Simulated flights of the same craft (the multirotor simulator, docs/simulator.md): 30
@@ -57,9 +59,9 @@ if has simulate; then
 fi
 if has sim; then
   run python offline/reproduce_table3.py --dataset "$WORK/sim_ds" --out "$OUT/sim" \
-    --work "$WORK/sim_runs" --seeds 5
+    --work "$WORK/sim_runs" --seeds "$SEEDS"
 fi
 if has sim_benchmark; then
   run python offline/reproduce_table3.py --dataset "$WORK/sim_benchmark_ds" \
-    --out "$OUT/sim_benchmark" --work "$WORK/sim_benchmark_runs" --seeds 5 --horizon 50
+    --out "$OUT/sim_benchmark" --work "$WORK/sim_benchmark_runs" --seeds "$SEEDS" --horizon 50
 fi
