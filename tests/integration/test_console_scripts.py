@@ -16,6 +16,8 @@ PROGRAMS = {
     'train': 'hybrid_models',
     'evaluate': 'hybrid_models',
     'reproduce_table2': 'hybrid_models',
+    'reproduce_table3': 'hybrid_models',
+    'peer_benchmark': 'hybrid_models',
     'compare_physics': 'hybrid_models',
     'set_threshold': 'hybrid_models',
     'set_bands': 'hybrid_models',

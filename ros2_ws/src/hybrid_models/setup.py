@@ -31,6 +31,6 @@ setup(
         'model_card = hybrid_models.cli.model_card:main',
         'crossval = hybrid_models.cli.crossval:main',
         'ensemble = hybrid_models.cli.ensemble:main',
-        'peers = hybrid_models.cli.peers:main',
+        'peer_benchmark = hybrid_models.cli.peers:main',
     ]},
 )
