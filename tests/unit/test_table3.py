@@ -1,5 +1,8 @@
 """Baier et al.'s Table 3 study: its plan, its figures against known errors, peers, claims."""
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -150,3 +153,42 @@ def test_the_papers_findings_are_judged_on_the_rows():
     claims = table3.check_claims(rows, 'MinQ+Qua-2P', {'MinQ+Qua-2P': sweep})
     assert not claims['lstm_best']['holds']
     assert claims['lstm_best']['lowest_trajectory'] == 'MinQ+Qua-2P'
+
+
+RESULTS = Path(__file__).resolve().parents[2] / 'docs' / 'results' / 'nanodrone'
+
+
+@pytest.mark.parametrize('protocol', ['paper', 'benchmark'])
+def test_the_documented_table3_is_the_committed_results(protocol):
+    """README.md's tables are table3.paper_table of the committed results.json, digit for digit."""
+    result = json.loads((RESULTS / protocol / 'results.json').read_text())
+    table = table3.paper_table(result['rows']).strip()
+    assert table in (RESULTS / 'README.md').read_text()
+    assert table in (RESULTS / protocol / 'REPORT.md').read_text()
+    # The findings the README states are the ones judged on these rows.
+    claims = result['claims']
+    assert claims['hybrids_close_behind_and_ahead_of_qlag']['holds']
+    assert not claims['lstm_best']['holds'] and not claims['bounded_at_8_percent']['holds']
+
+
+def test_the_quadrotor_figures_of_the_top_readme_are_the_committed_results():
+    readme = (RESULTS.parents[2] / 'README.md').read_text()
+    section = readme[readme.index("**The paper's quadrotor**"):]
+    table = {line.split('|')[1].strip(): line for line in section.split('\n\n')[1].splitlines()}
+    rows = {p: {r['label']: r for r in json.loads(
+        (RESULTS / p / 'results.json').read_text())['rows']} for p in ('paper', 'benchmark')}
+
+    def traj(protocol, label):
+        row = rows[protocol][label]
+        sd = (row.get('spread') or {}).get('trajectory', {}).get('mean')
+        mean = f'{row["metrics"]["trajectory"]["mean"]:.3f}'
+        return mean + (f' ± {sd:.3f}' if sd is not None else '')
+
+    best = table['best hybrid (MinQ+Qua-2P; MinQ+Lin-2P)']
+    assert f"| {traj('paper', 'MinQ+Qua-2P')} m |" in best
+    assert (f"| {traj('benchmark', 'MinQ+Qua-2P')} m; {traj('benchmark', 'MinQ+Lin-2P')} m |"
+            in best)
+    for label in ('LSTM', 'QLag'):
+        assert f"| {traj('paper', label)} m | {traj('benchmark', label)} m |" in table[label]
+    assert table["the benchmark's hybrid, physics, LSTM"].endswith('| ' + ', '.join(
+        traj('benchmark', f'benchmark {p}') for p in ('hybrid', 'physics', 'lstm')) + ' m |')

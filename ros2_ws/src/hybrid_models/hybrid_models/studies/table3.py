@@ -293,7 +293,7 @@ def _cell(value, spread=None, digits=3) -> str:
 def paper_table(rows: list[dict]) -> str:
     """Markdown: the paper's columns for every row, ours beside the paper's figures."""
     head = ['model', *PAPER_HEAD, 'trajectory [m]', 'seeds',
-            "paper: x' y' z' p q r | trajectory"]
+            "paper: x' y' z' p q r", 'trajectory']
     lines = ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)]
     for r in rows:
         sd = r.get('paper_spread') or {}
