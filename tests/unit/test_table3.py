@@ -158,17 +158,19 @@ def test_the_papers_findings_are_judged_on_the_rows():
 RESULTS = Path(__file__).resolve().parents[2] / 'docs' / 'results' / 'nanodrone'
 
 
-@pytest.mark.parametrize('protocol', ['paper', 'benchmark'])
+@pytest.mark.parametrize('protocol', ['paper', 'benchmark', 'sim'])
 def test_the_documented_table3_is_the_committed_results(protocol):
     """README.md's tables are table3.paper_table of the committed results.json, digit for digit."""
     result = json.loads((RESULTS / protocol / 'results.json').read_text())
     table = table3.paper_table(result['rows']).strip()
     assert table in (RESULTS / 'README.md').read_text()
     assert table in (RESULTS / protocol / 'REPORT.md').read_text()
-    # The findings the README states are the ones judged on these rows.
+    # The findings the README states are the ones judged on these rows: on the real
+    # flights the bound at 8 % does not hold, on the simulated ones it does.
     claims = result['claims']
     assert claims['hybrids_close_behind_and_ahead_of_qlag']['holds']
-    assert not claims['lstm_best']['holds'] and not claims['bounded_at_8_percent']['holds']
+    assert not claims['lstm_best']['holds']
+    assert claims['bounded_at_8_percent']['holds'] == (protocol == 'sim')
 
 
 def test_the_quadrotor_figures_of_the_top_readme_are_the_committed_results():
