@@ -3,7 +3,8 @@
 # paper's protocol and under the benchmark's, with the benchmark's own models as rows).
 # Usage (repo root, after `make setup`): docs/results/nanodrone/run.sh [WORK] [STEP...]
 #   WORK: where datasets and trainings go (default /tmp/real/nanodrone); STEP: any of
-#   convert peers paper benchmark simulate sim sim_benchmark (default all, in that order).
+#   convert peers paper benchmark simulate sim sim_benchmark physics (default all, in
+#   that order).
 #   Nothing of the flights is committed; re-running resumes the trainings. SEEDS=n
 #   (default 5) trains fewer seeds per model, for a shorter run.
 # Time on the 2-core machine: conversion seconds, peers ~2 min, simulation ~1 min, each
@@ -11,7 +12,7 @@
 set -euo pipefail
 WORK="${1:-/tmp/real/nanodrone}"
 shift || true
-STEPS="${*:-convert peers paper benchmark simulate sim sim_benchmark}"
+STEPS="${*:-convert peers paper benchmark simulate sim sim_benchmark physics}"
 SEEDS="${SEEDS:-5}"
 OUT=docs/results/nanodrone
 REAL=../shared/real/nanodrone
@@ -64,4 +65,15 @@ fi
 if has sim_benchmark; then
   run python offline/reproduce_table3.py --dataset "$WORK/sim_benchmark_ds" \
     --out "$OUT/sim_benchmark" --work "$WORK/sim_benchmark_runs" --seeds "$SEEDS" --horizon 50
+fi
+# The same hybrid on rotorpy's file and on the diagnosis's augmented one (diagnosis.md),
+# paper protocol: does better physics let the bound shrink?
+if has physics; then
+  run python offline/compare_physics.py --dataset "$WORK/paper_ds" \
+    --physics nominal=ros2_ws/src/vessel_physics/config/crazyflie_brushless_multirotor.yaml \
+    augmented=$OUT/diagnosis/nominal/augmented_physics.yaml \
+    --config ros2_ws/src/hybrid_models/config/table3_hybrid.yaml --stride 10 --jobs 2 \
+    --out "$WORK/compare_physics"
+  cp "$WORK"/compare_physics/{report.md,results.json,table.md,threshold_comparison.png} \
+    "$OUT/compare_physics/"
 fi
