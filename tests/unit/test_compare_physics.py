@@ -124,3 +124,11 @@ def test_a_shipped_vessel_given_by_its_file_has_its_scenarios(tmp_path, capsys):
                               'weak_thruster', '--out', str(tmp_path / 'y')])
     said = capsys.readouterr().err
     assert code == 1 and 'differs from the shipped vessel' in said and said.count('\n') == 1
+
+
+def test_results_name_the_repositorys_physics_files_relative_to_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(ROOT)
+    _, inside = compare_physics.labelled_physics(f'nominal={SMOKE}')
+    assert compare_physics._shown(inside) == str(SMOKE.relative_to(ROOT))
+    _, outside = compare_physics.labelled_physics(f'mine={tmp_path / "p.yaml"}')
+    assert compare_physics._shown(outside) == str((tmp_path / 'p.yaml').resolve())

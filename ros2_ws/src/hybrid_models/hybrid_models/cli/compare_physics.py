@@ -53,6 +53,13 @@ def labelled_physics(text: str) -> tuple[str, Path]:
     return label, Path(path).resolve()
 
 
+def _shown(path: Path) -> str:
+    """Return a physics file as results.json records it: inside the cwd, relative to it."""
+    # The repository's own files then name no path of this machine.
+    cwd = Path.cwd().resolve()
+    return str(path.relative_to(cwd)) if path.is_relative_to(cwd) else str(path)
+
+
 def parse_args(argv):
     """Return the parsed command line."""
     parser = argparse.ArgumentParser(description=__doc__,
@@ -118,7 +125,7 @@ def main(argv=None) -> int:
                                                                  args.horizon, args.stride)
     evaluated = evaluate_all(args, spec)
     result = {'dataset': {'path': str(args.dataset), 'sha256': dataset_hash(args.dataset)},
-              'physics': {label: str(path) for label, path in args.physics},
+              'physics': {label: _shown(path) for label, path in args.physics},
               'reference': args.physics[0][0], 'tolerance': args.tolerance,
               'protocol': {'window': args.window, 'horizon': args.horizon,
                            'stride': args.stride, 'target': 'true'},
