@@ -429,8 +429,7 @@ class Identifier:
                 continue
             nominal = self.nominal.parameter(cand.target)
             change = point.theta.get(name, 0.0)
-            if nominal != 0 and (np.sign(nominal + change) != np.sign(nominal)
-                                 or abs(change) > limit * abs(nominal)):
+            if nominal != 0 and self._excess(point, name) > limit:
                 out[name] = (f'implausible: {cand.target} would go from {nominal:.4g} to '
                              f'{nominal + change:.4g} (a sign change or more than '
                              f'{limit:g} times its nominal size away)')
