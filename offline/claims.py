@@ -13,6 +13,12 @@ beyond its tolerance (``TOLERANCE``): a change of code that moves a documented r
 seen at once, and either fixed or the result re-derived with ``derive`` and committed
 with the docs that state it. tests/unit/test_real_claims.py runs ``check`` in
 ``make test`` where ../shared/real is present.
+
+``check`` also keeps the committed diagnoses of real data (``DIAGNOSES``; their claims are
+their own findings.json): on the recordings converted again, the held-out forecast error
+of the nominal and of the committed augmented physics must stay within
+``DIAGNOSIS_TOLERANCE`` of the findings' and the augmented one better; where a whole
+diagnosis fits the suite's budget it is run again and must name the same terms.
 """
 
 from __future__ import annotations
@@ -24,6 +30,9 @@ import json
 from pathlib import Path
 import re
 import sys
+import tempfile
+
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 REAL = REPO.parent / 'shared' / 'real'
@@ -46,6 +55,16 @@ CONVERSIONS = {
         'REAL/ardupilot_copter/Loiter_RTL.bin', '--vessel',
         'docs/results/real/autopilot/arducopter_quad.yaml']),
 }
+# Committed diagnoses of real data: the conversion they were run on, their folder, and
+# whether the whole diagnosis is run again (KVLCC2's takes ~30 s; the nanodrone's ~8 min
+# goes to the slow suite, its augmented physics is judged again on every commit).
+DIAGNOSES = {
+    'kvlcc2_hsva': ('kvlcc2_hsva', 'docs/results/real/kvlcc2/diagnosis', True),
+    'nanodrone': ('nanodrone', 'docs/results/nanodrone/diagnosis/nominal', False),
+}
+# How far a diagnosis's held-out trajectory error may move, relative: the evaluation is
+# deterministic, so only a change of code moves it.
+DIAGNOSIS_TOLERANCE = 0.02
 # How far a figure may move (absolute), by what it measures; counts must stay equal.
 TOLERANCE = {'slope': 0.01, 'seconds': 0.02, 'degrees': 0.25, 'count': 0.0}
 
@@ -61,32 +80,38 @@ def kind_of(check: str) -> str:
     return 'slope'
 
 
-def argv_of(name: str) -> list[str]:
-    """Return the converter's arguments of one conversion, with the real data's paths."""
+def argv_of(name: str, out: Path | None = None) -> list[str]:
+    """
+    Return the converter's arguments of one conversion, with the real data's paths.
+
+    A dry run, or the dataset written to ``out`` (for the diagnoses' checks).
+    """
     _, _, args = CONVERSIONS[name]
-    out = []
+    argv = []
     for a in args:
         if a == 'REAL_NANODRONE_FLIGHTS':   # every flight but the one the checks refuse
-            out += [str(p) for p in sorted((REAL / 'nanodrone').glob('*/*.parquet'))
+            argv += [str(p) for p in sorted((REAL / 'nanodrone').glob('*/*.parquet'))
                     if not p.stem.endswith('_na')]
         elif a.startswith('REAL/'):
-            out.append(str(REAL / a[len('REAL/'):]))
+            argv.append(str(REAL / a[len('REAL/'):]))
         elif a.endswith('.yaml') and '/' in a:
-            out.append(str(REPO / a))
+            argv.append(str(REPO / a))
         else:
-            out.append(a)
-    return out + ['--dry-run', '--quiet', '--out', '/nonexistent-dry-run']
+            argv.append(a)
+    if out is not None:
+        return argv + ['--quiet', '--overwrite', '--out', str(out)]
+    return argv + ['--dry-run', '--quiet', '--out', '/nonexistent-dry-run']
 
 
-def convert(name: str) -> dict:
-    """Run one conversion as its document prints it; return its figures."""
+def convert(name: str, out: Path | None = None) -> dict:
+    """Run one conversion as its document prints it (into ``out`` if given); return its figures."""
     from vessel_datasets import bag_to_dataset, log_to_dataset, table_to_dataset
 
     main = {'bag_to_dataset': bag_to_dataset.main, 'table_to_dataset': table_to_dataset.main,
             'log_to_dataset': log_to_dataset.main}[CONVERSIONS[name][1]]
     said = io.StringIO()
-    with contextlib.redirect_stderr(said):
-        code = main(argv_of(name))
+    with contextlib.redirect_stderr(said), contextlib.redirect_stdout(io.StringIO()):
+        code = main(argv_of(name, out))
     text = said.getvalue()
     failed = re.search(r'map checks failed \((.*)\);', text)
     failed = failed.group(1) if failed else ''   # names that hold commas themselves
@@ -137,6 +162,76 @@ def differences(claimed: dict, now: dict) -> list[str]:
     return out
 
 
+def _nominal_file(source: str) -> Path:
+    """Return the nominal physics file a findings.json names (packaged or repo-relative)."""
+    from vessel_physics.files import config_dir
+    packaged = 'vessel_physics/config/'
+    return config_dir() / source[len(packaged):] if source.startswith(packaged) else REPO / source
+
+
+def _trajectory(metrics: dict) -> dict:
+    return {name: (f or {}).get('trajectory', {}).get('mean')
+            for name, f in (metrics or {}).get('forecast', {}).items()}
+
+
+def diagnosis_figures(name: str, dataset: Path, work: Path, whole: bool = False) -> dict:
+    """
+    Return a committed diagnosis's figures on ``dataset`` as today's code gives them.
+
+    The held-out trajectory error [m] of the nominal and the committed augmented physics
+    on the held-out runs its findings name; where ``DIAGNOSES`` says so, the diagnosis
+    (or ``whole``) the diagnosis is run whole and its own figures and named terms are
+    returned instead.
+    """
+    from vessel_diagnosis.evaluate import evaluate
+    from vessel_diagnosis.pipeline import diagnose, nominal_physics
+    from vessel_diagnosis.recordings import load_recordings, recordings_vessel
+    from vessel_diagnosis.settings import load_settings
+    from vessel_physics.physics_file import load_physics
+
+    _, folder, rerun = DIAGNOSES[name]
+    found = json.loads((REPO / folder / 'findings.json').read_text())
+    nominal_file = _nominal_file(found['nominal_physics']['source'])
+    if rerun or whole:
+        result = diagnose([dataset], nominal_file, work / f'{name}_diagnosis')
+        return {'trajectory': _trajectory(result['metrics']),
+                'terms': sorted(r['term'] for r in result['findings'])}
+    vessel = recordings_vessel([dataset])
+    wanted = found['recordings']['held_out_runs']
+    held = [r for r in load_recordings([dataset], vessel) if r.run_id in wanted]
+    if len(held) != len(wanted):
+        return {'trajectory': {}, 'held_out_runs': [r.run_id for r in held]}
+    nominal = nominal_physics(nominal_file, vessel)
+    augmented = load_physics(REPO / folder / found['augmented_physics']['physics'], vessel)
+    currents = {k: np.asarray(v) for k, v in found['metrics']['held_out_currents'].items()}
+    metrics = evaluate(held, {'nominal': (nominal, {}), 'augmented': (augmented, currents)},
+                       load_settings(family=nominal.family.name), vessel)
+    return {'trajectory': _trajectory(metrics)}
+
+
+def diagnosis_differences(name: str, now: dict) -> list[str]:
+    """Return one line per held-out figure, order or named term that moved from the findings'."""
+    found = json.loads((REPO / DIAGNOSES[name][1] / 'findings.json').read_text())
+    claimed = _trajectory(found['metrics'])
+    out = []
+    if 'held_out_runs' in now:
+        return [f"{name} diagnosis: held-out runs {now['held_out_runs']}, the findings' "
+                f"{found['recordings']['held_out_runs']}"]
+    for model, figure in claimed.items():
+        got = now['trajectory'].get(model)
+        if got is None or abs(got - figure) > DIAGNOSIS_TOLERANCE * abs(figure):
+            out.append(f"{name} diagnosis: {model} physics held-out trajectory error {got}, "
+                       f"the findings' {figure:.4g} (tolerance {DIAGNOSIS_TOLERANCE:.0%})")
+    nominal, augmented = now['trajectory'].get('nominal'), now['trajectory'].get('augmented')
+    if nominal is not None and augmented is not None and not augmented < nominal:
+        out.append(f'{name} diagnosis: the augmented physics no longer forecasts the '
+                   f'held-out runs better ({augmented:.4g} against {nominal:.4g} m)')
+    terms = sorted(r['term'] for r in found['findings'])
+    if 'terms' in now and now['terms'] != terms:
+        out.append(f"{name} diagnosis: names {now['terms']}, the findings' {terms}")
+    return out
+
+
 def main(argv=None) -> int:
     """Derive or check the claims; return the exit code."""
     parser = argparse.ArgumentParser(description=__doc__,
@@ -144,15 +239,28 @@ def main(argv=None) -> int:
     parser.add_argument('action', choices=('derive', 'check'))
     parser.add_argument('--only', nargs='+', choices=sorted(CONVERSIONS),
                         help='these conversions only (default all)')
+    parser.add_argument('--whole-diagnoses', action='store_true',
+                        help='check: run every committed diagnosis whole (the nanodrone '
+                             "one takes ~8 min; the slow suite's check)")
     args = parser.parse_args(argv)
     if not REAL.is_dir():
         print(f'claims: error: {REAL} (the shared real recordings) is absent', file=sys.stderr)
         return 2
     names = args.only or list(CONVERSIONS)
-    now = {}
-    for name in names:
-        print(f'claims: converting {name} as {CONVERSIONS[name][0]} prints it', file=sys.stderr)
-        now[name] = convert(name)
+    diagnoses = [d for d, (conversion, _, _) in DIAGNOSES.items()
+                 if conversion in names and args.action == 'check']
+    now, diagnosed = {}, {}
+    with tempfile.TemporaryDirectory(prefix='claims-') as tmp:
+        work = Path(tmp)
+        for name in names:
+            print(f'claims: converting {name} as {CONVERSIONS[name][0]} prints it',
+                  file=sys.stderr)
+            kept = any(DIAGNOSES[d][0] == name for d in diagnoses)
+            now[name] = convert(name, work / name if kept else None)
+        for name in diagnoses:
+            print(f'claims: judging the {name} diagnosis again', file=sys.stderr)
+            diagnosed[name] = diagnosis_figures(name, work / DIAGNOSES[name][0], work,
+                                                args.whole_diagnoses)
     if args.action == 'derive':
         claims = json.loads(CLAIMS.read_text()) if CLAIMS.is_file() else {}
         claims.update(now)
@@ -161,9 +269,12 @@ def main(argv=None) -> int:
         return 0
     claimed = json.loads(CLAIMS.read_text())
     moved = differences({k: claimed[k] for k in names}, now)
+    for name, figures in diagnosed.items():
+        moved += diagnosis_differences(name, figures)
     for line in moved:
         print(f'claims: {line}', file=sys.stderr)
-    print(json.dumps({'checked': names, 'moved': moved}, indent=2))
+    print(json.dumps({'checked': names, 'diagnoses': diagnoses, 'figures': diagnosed,
+                      'moved': moved}, indent=2))
     return 1 if moved else 0
 
 

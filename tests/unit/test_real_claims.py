@@ -22,7 +22,39 @@ def test_every_documented_conversion_still_gives_its_documented_figures(capsys):
     code = claims.main(['check'])
     out = json.loads(capsys.readouterr().out)
     assert out['checked'] == list(claims.CONVERSIONS)
+    assert out['diagnoses'] == list(claims.DIAGNOSES)
+    assert all(out['figures'][d]['trajectory'] for d in claims.DIAGNOSES)
     assert code == 0 and not out['moved'], out['moved']
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} (third-party recordings) is absent')
+def test_the_nanodrone_diagnosis_run_whole_names_its_documented_terms(capsys):
+    code = claims.main(['check', '--only', 'nanodrone', '--whole-diagnoses'])
+    out = json.loads(capsys.readouterr().out)
+    assert out['figures']['nanodrone']['terms']
+    assert code == 0 and not out['moved'], out['moved']
+
+
+def test_a_diagnosis_whose_figures_or_terms_move_is_named():
+    """The findings are the claim: a figure 2 % off, a lost order or other terms fail."""
+    found = json.loads((claims.REPO / claims.DIAGNOSES['kvlcc2_hsva'][1] /
+                        'findings.json').read_text())
+    same = {'trajectory': claims._trajectory(found['metrics']),
+            'terms': sorted(r['term'] for r in found['findings'])}
+    assert claims.diagnosis_differences('kvlcc2_hsva', same) == []
+    within = {**same, 'trajectory': {'nominal': same['trajectory']['nominal'] * 1.01,
+                                     'augmented': same['trajectory']['augmented']}}
+    assert claims.diagnosis_differences('kvlcc2_hsva', within) == []
+    worse = {'trajectory': {'nominal': 1.676, 'augmented': 1.9}, 'terms': same['terms'][1:]}
+    moved = claims.diagnosis_differences('kvlcc2_hsva', worse)
+    assert len(moved) == 3, moved
+    assert moved[0].startswith('kvlcc2_hsva diagnosis: augmented physics held-out trajectory '
+                               "error 1.9, the findings' 0.6127")
+    assert 'no longer forecasts the held-out runs better' in moved[1]
+    assert moved[2].startswith("kvlcc2_hsva diagnosis: names ['N_vvr'")
+    lost = claims.diagnosis_differences('nanodrone', {'trajectory': {}, 'held_out_runs': []})
+    assert lost and 'held-out runs []' in lost[0]
 
 
 def test_a_figure_that_moves_beyond_its_tolerance_is_named():
