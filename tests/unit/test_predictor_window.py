@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from hybrid_predictor.input_window import InputWindow
+from hybrid_predictor.input_window import InputWindow, Samples
 from vessel_datasets.topic_map import parse_topic_map, topic_map_for
 from vessel_datasets.topic_messages import channel_reader
 from vessel_description import load_vessel
@@ -143,8 +143,31 @@ def test_old_data_is_stale():
 def test_buffers_keep_only_what_a_window_needs():
     window = make()
     fill(window, 0.0, 2000.0, state_rate=10.0)
-    assert len(window.streams['/state']._times) < 10 * (W + 5)
+    samples = window.streams['/state']._samples
+    assert len(samples) < 10 * (W + 5)
+    # Bounded: compacted while at most half full, else doubled, so at most 4x the rows kept.
+    assert len(samples._times) <= 4 * 10 * (W + 5)
     assert window.assemble(now=2000.0).ready
+
+
+def test_samples_keep_their_order_through_drops_compaction_and_growth():
+    samples = Samples(width=2, capacity=4)
+    kept = []
+    for k in range(40):
+        samples.append(float(k), [k, -k])
+        kept.append(k)
+        if k % 3 == 2:                 # drop some: the buffer compacts instead of growing
+            samples.drop_first()
+            kept.pop(0)
+    times, rows = samples.arrays()
+    assert times.tolist() == [float(k) for k in kept]
+    assert rows.tolist() == [[k, -k] for k in kept]
+    assert samples.time(0) == kept[0] and samples.time(-1) == 39.0
+    assert samples.last_row().tolist() == [39, -39]
+    times[0] = -1.0                    # a copy: the caller cannot change the buffer
+    assert samples.time(0) == kept[0]
+    samples.clear()
+    assert len(samples) == 0 and samples.arrays()[0].size == 0
 
 
 @pytest.mark.parametrize('delays', [{}, {'surge': 2.0, 'sway': 2.0, 'position': 2.0}])

@@ -24,7 +24,6 @@ Times are in seconds on the clock of the message stamps.
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass, field
 import math
 
@@ -70,6 +69,59 @@ class StreamCounts:
 REJECTIONS = tuple(f for f in StreamCounts.__dataclass_fields__ if f != 'accepted')
 
 
+class Samples:
+    """
+    Time-ordered rows of a stream in one NumPy buffer: appended at the end, dropped in front.
+
+    A window is read every state sample (100 Hz for a multirotor): the buffered rows are
+    a slice of one array, where a deque of rows was converted element by element on
+    every read (0.7 ms of the node's 5 ms per forecast, measured).
+    """
+
+    def __init__(self, width: int, capacity: int = 256):
+        self._times = np.empty(capacity)
+        self._rows = np.empty((capacity, width))
+        self._first = self._end = 0
+
+    def __len__(self) -> int:
+        return self._end - self._first
+
+    def append(self, t: float, row) -> None:
+        """Add the row ``row`` stamped ``t`` (s) after the newest."""
+        if self._end == len(self._times):
+            kept = len(self)
+            if kept * 2 > len(self._times):     # full: double the buffer
+                self._times = np.resize(self._times, 2 * len(self._times))
+                self._rows = np.resize(self._rows, (2 * len(self._rows), self._rows.shape[1]))
+            self._times[:kept] = self._times[self._first:self._end]
+            self._rows[:kept] = self._rows[self._first:self._end]
+            self._first, self._end = 0, kept
+        self._times[self._end] = t
+        self._rows[self._end] = row
+        self._end += 1
+
+    def drop_first(self) -> None:
+        """Forget the oldest row."""
+        self._first += 1
+
+    def clear(self) -> None:
+        """Forget every row."""
+        self._first = self._end = 0
+
+    def time(self, i: int) -> float:
+        """Return the stamp (s) of row ``i`` (negative from the newest)."""
+        return float(self._times[self._end + i if i < 0 else self._first + i])
+
+    def last_row(self) -> np.ndarray:
+        """Return the newest row."""
+        return self._rows[self._end - 1]
+
+    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return copies of the stamps (s) and rows (n, width)."""
+        span = slice(self._first, self._end)
+        return self._times[span].copy(), self._rows[span].copy()
+
+
 @dataclass
 class Stream:
     """Time-ordered samples of one topic's channels, pruned to the span a window needs."""
@@ -83,13 +135,15 @@ class Stream:
     floor: float = math.inf
     reach_s: float = 0.0
     counts: StreamCounts = field(default_factory=StreamCounts)
-    _times: deque = field(default_factory=deque)
-    _values: deque = field(default_factory=deque)
+    _samples: Samples | None = None
+
+    def __post_init__(self):
+        self._samples = Samples(len(self.channels))
 
     @property
     def latest_time(self) -> float | None:
         """Return the stamp of the newest accepted sample, or None."""
-        return self._times[-1] if self._times else None
+        return self._samples.time(-1) if len(self._samples) else None
 
     def reject(self, reason: str, message: str) -> str:
         """Count a rejection for ``reason`` (one of REJECTIONS); return the message."""
@@ -98,7 +152,7 @@ class Stream:
 
     def content_reason(self, t: float, values: dict[str, float]) -> str | None:
         """Count and return why a sample's content is unusable (not its time order)."""
-        have = set(values) | (set(self.channels) if self._values else set())
+        have = set(values) | (set(self.channels) if len(self._samples) else set())
         missing = [c for c in self.channels if c not in have]
         if missing:
             return self.reject('incomplete', f'{self.name}: first sample lacks {missing}')
@@ -111,38 +165,34 @@ class Stream:
         reason = self.content_reason(t, values)
         if reason:
             return reason
-        if self._values:
-            last = dict(zip(self.channels, self._values[-1], strict=True))
+        samples = self._samples
+        if len(samples):
+            last = dict(zip(self.channels, samples.last_row().tolist(), strict=True))
             values = {**last, **values}  # a partial sample completes from the last one
         row = [float(values[c]) for c in self.channels]
-        if self._times and t <= self._times[-1]:
-            if t == self._times[-1]:
+        if len(samples) and t <= (newest := samples.time(-1)):
+            if t == newest:
                 return self.reject('duplicate', f'{self.name}: duplicate stamp t={t}')
             return self.reject('out_of_order', f'{self.name}: stamp t={t} older than the '
-                               f'last ({self._times[-1]})')
-        self._times.append(t)
-        self._values.append(row)
+                               f'last ({newest})')
+        samples.append(t, row)
         self.counts.accepted += 1
         oldest = t - max(self.keep_s, min(t - self.floor, self.reach_s))
-        while len(self._times) > 2 and self._times[1] < oldest:
-            self._times.popleft()
-            self._values.popleft()
+        while len(samples) > 2 and samples.time(1) < oldest:
+            samples.drop_first()
         return None
 
     def clear(self) -> None:
         """Forget every sample (counts are kept)."""
-        self._times.clear()
-        self._values.clear()
+        self._samples.clear()
 
     def take_samples(self, other: Stream) -> None:
         """Hold ``other``'s samples instead of this stream's (counts are kept); empty it."""
-        self._times, other._times = other._times, deque()
-        self._values, other._values = other._values, deque()
+        self._samples, other._samples = other._samples, Samples(len(other.channels))
 
     def arrays(self) -> tuple[np.ndarray, np.ndarray]:
         """Return the buffered times (s) and values (n, channels)."""
-        times = np.fromiter(self._times, float, len(self._times))
-        return times, np.asarray(self._values, dtype=float).reshape(len(times), -1)
+        return self._samples.arrays()
 
     def coverage(self, grid: np.ndarray, max_gap: float) -> tuple[str, int]:
         """
@@ -151,7 +201,7 @@ class Stream:
         A held stream covers a grid point with a sample at most ``max_gap`` before it;
         an interpolated one with samples on both sides at most ``max_gap`` apart.
         """
-        if not self._times:
+        if not len(self._samples):
             return f'no {self.name} received', 0
         times, _ = self.arrays()
         if self.hold:
