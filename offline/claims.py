@@ -40,7 +40,7 @@ CLAIMS = REPO / 'docs' / 'results' / 'real' / 'claims.json'
 # Where each command is printed, and the command (repo-relative paths; REAL stands for
 # ../shared/real). The --out of the docs is replaced by --dry-run: nothing is written.
 CONVERSIONS = {
-    'snuboat': ('docs/results/real/README.md', 'bag_to_dataset', [
+    'snuboat': ('docs/results/real/snuboat/README.md', 'bag_to_dataset', [
         'REAL/snuboat/bags', '--vessel', 'snuboat', '--msg-dir', 'REAL/snuboat/msg',
         '--msg-package', 'snumsg_pkg', '--jobs', '2']),
     'kvlcc2_hsva': ('docs/results/real/kvlcc2_import.md', 'table_to_dataset', [

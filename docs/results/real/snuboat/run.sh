@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Derive every snuboat figure in docs/results/real/README.md from the original bags.
+# Derive every snuboat figure in docs/results/real/snuboat/README.md from the original bags.
 # Usage (repo root, after `make setup`): docs/results/real/snuboat/run.sh [SHARED_REAL] [WORK]
+# The current results are written into docs/results/real/snuboat (convert.log, heldout/,
+# bykind/); the band studies stay in WORK (snu_cv5_samples0, snu_cv5_samples1,
+# snu_cv5_counts0: report, table, results and bands_*.md; docs/results/real/bands.md).
 # About two hours on 2 cores (20 + 18 + 75 trainings of a minute or two; a second call keeps
 # every finished training).
 set -euo pipefail
@@ -57,13 +60,10 @@ cv_bands() {  # NAME FOLD_BALANCE FOLD_SEED
     > /dev/null
   run python offline/set_threshold.py "$study/runs/hybrid/fold0/seed0/model.safetensors" 1.0 \
     --out "$model" > /dev/null
-  mkdir -p "$OUT/cv5_$1"
   for calibration in fold-robust pooled; do
     run python offline/set_bands.py "$model" --study "$study" --model hybrid \
-      --calibration "$calibration" 2> /dev/null > "$OUT/cv5_$1/bands_$calibration.md"
+      --calibration "$calibration" 2> /dev/null > "$study/bands_$calibration.md"
   done
-  cp "$study"/{report.md,table.md,results.json} "$OUT/cv5_$1/"
-  sed -i "s#$WORK/#\$WORK/#g" "$OUT/cv5_$1"/*.md "$OUT/cv5_$1/results.json"
 }
 cv_bands samples0 samples 0
 cv_bands samples1 samples 1
