@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
-# Derive every KVLCC2 figure in docs/results/real/README.md from the original tank logs.
+# Derive every KVLCC2 figure in docs/results/real/kvlcc2/README.md from the original tank logs.
 # Usage (repo root, after `make setup`): docs/results/real/kvlcc2/run.sh [SHARED_REAL] [WORK]
+# The current results are written into docs/results/real/kvlcc2 (import.log, mmg_alone,
+# diagnosis/, heldout_warm/, cv5_noleak/); the studies measured and not kept stay in WORK
+# (the page names each one's folder there).
 # About eight hours on 2 cores: 15 + 10 trainings on the held-out split and
 # 75 + 30 + 50 + 25 + 25 + 30 + 50 over five folds, one to three minutes each (a second call
 # keeps every finished training).
@@ -34,13 +37,13 @@ run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_c
 run python offline/crossval.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_hyd" \
   --seeds 5 --model "hybrid, Hyd regression physics=$CONFIGS/hybrid.yaml" > /dev/null
 # 7. The five folds run by run: each held-out run's error per model, the seeds' ensemble.
-run python docs/results/real/analysis/workflow_folds.py "$WORK/kvlcc2_cv5" "$OUT/cv5" \
+run python docs/results/real/analysis/workflow_folds.py "$WORK/kvlcc2_cv5" "$WORK/kvlcc2_cv5" \
   > /dev/null
 # 8. Measured, not kept: the physics alone on unfamiliar input windows (post hoc), and
 #    smaller or weight-decayed corrections on folds 2 and 4 (the mild zig-zags; weight
 #    decay 0.0001, the data's residual scale and no teacher phase on all five folds),
 #    3 seeds.
-run python docs/results/real/analysis/envelope_guard.py "$WORK/kvlcc2_cv5" "$OUT/cv5/guard" \
+run python docs/results/real/analysis/envelope_guard.py "$WORK/kvlcc2_cv5" "$WORK/kvlcc2_cv5/guard" \
   > /dev/null
 run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" \
   "$WORK/kvlcc2_cv5_small" --folds 2 4 --set model.hidden=16 --set model.layers=1 > /dev/null
@@ -55,30 +58,27 @@ run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5" 
   "$WORK/kvlcc2_cv5_noteacher" --folds 0 1 2 3 4 \
   --set 'training.phases=[{kind: multistep, max_epochs: 60, patience: 10, lr: 0.001}]' \
   > /dev/null
-for variant in small wd wd4 scale noteacher; do
-  mkdir -p "$OUT/cv5/variant_$variant"
-  cp "$WORK/kvlcc2_cv5_$variant/variant.json" "$OUT/cv5/variant_$variant/"
-done
+#    Each variant's figures: $WORK/kvlcc2_cv5_{small,wd,wd4,scale,noteacher}/variant.json.
 # 9. The five folds again, dealt by samples (the default since 2026-11-25; step 5 keeps the
 #    former dealing), the two MMG hybrids with three seeds each (no LSTM), and the
 #    cross-validated bands of each (docs/results/real/bands.md).
 run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" \
   --out "$WORK/kvlcc2_cv5_by_samples" --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 3 \
   --folds 5 > /dev/null
-mkdir -p "$OUT/cv5_by_samples"
 for physics in nominal augmented; do
   model="$WORK/kv_cv5_by_samples_$physics.safetensors"
   run python offline/set_threshold.py \
     "$WORK/kvlcc2_cv5_by_samples/runs/hybrid_on_${physics}_physics/fold0/seed0/model.safetensors" \
     none --out "$model" > /dev/null
   run python offline/set_bands.py "$model" --study "$WORK/kvlcc2_cv5_by_samples" \
-    --model "hybrid on $physics physics" 2> /dev/null > "$OUT/cv5_by_samples/bands_$physics.md"
+    --model "hybrid on $physics physics" 2> /dev/null \
+    > "$WORK/kvlcc2_cv5_by_samples/bands_$physics.md"
 done
 # 10. Which model the folds' own validation runs would have served (post hoc, from the
 #    checkpoints of step 9): the lowest validation score among each physics alone and
 #    the hybrid on each, per fold and seed.
 run python docs/results/real/analysis/workflow_choice.py "$WORK/kvlcc2_cv5_by_samples" \
-  "$OUT/cv5_by_samples" > /dev/null
+  "$WORK/kvlcc2_cv5_by_samples" > /dev/null
 # 11. The five folds dealt by samples with five seeds, each hybrid's seeds of a fold also
 #    served as one ensemble (the workflow's default since 2026-11-26), the two MMG hybrids.
 run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_cv5_ensemble" \
@@ -90,13 +90,11 @@ slower='{kind: multistep, max_epochs: 60, patience: 10, lr: 0.0003}'
 run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5_ensemble" \
   "$WORK/kvlcc2_cv5_lr3" --folds 0 1 2 3 4 --set "training.phases=[$teacher, $slower]" \
   > /dev/null
-mkdir -p "$OUT/cv5_ensemble/variant_lr3"
-cp "$WORK/kvlcc2_cv5_lr3/variant.json" "$OUT/cv5_ensemble/variant_lr3/"
 # 13. What the multistep phase sees of each physics (step 11's folds and checkpoints): the
 #    physics alone's normalized loss over 1-400 steps on the training runs, against the
 #    hybrids' multistep training loss at the kept and the last epoch.
 run python docs/results/real/analysis/physics_drift.py "$WORK/kvlcc2_cv5_ensemble" \
-  "$OUT/cv5_ensemble" > /dev/null
+  "$WORK/kvlcc2_cv5_ensemble" > /dev/null
 # 14. The hybrid on the augmented physics started from the recurrent layers of the hybrid
 #    on the nominal physics of its fold and seed (training.init_from; what the workflow
 #    does by default since 2026-11-27, --cold-start as before), step 11's folds, 5 seeds.
@@ -105,9 +103,6 @@ run python docs/results/real/analysis/correction_variants.py "$WORK/kvlcc2_cv5_e
   --models "hybrid on augmented physics" \
   --set 'training.init_from={study}/runs/hybrid_on_nominal_physics/fold{fold}/seed{seed}/model.safetensors' \
   > /dev/null
-mkdir -p "$OUT/cv5_ensemble/variant_warm"
-cp "$WORK/kvlcc2_cv5_warm/variant.json" "$OUT/cv5_ensemble/variant_warm/"
-sed -i "s#$WORK/#\$WORK/#g" "$OUT/cv5_ensemble/variant_warm/variant.json"
 # 15. The workflow on the held-out split again, as step 4 but with the warm start (its
 #    default since 2026-11-27), the two MMG hybrids with five seeds (no LSTM).
 run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_heldout_warm" \
@@ -159,20 +154,19 @@ if [ ! -d "$noleak8/runs" ]; then
 fi
 run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$noleak8" \
   --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 8 --folds 5 > /dev/null
-mkdir -p "$OUT/cv5_noleak8"
-run python docs/results/real/analysis/paired_seeds.py "$noleak8" "$OUT/cv5_noleak8" > /dev/null
+run python docs/results/real/analysis/paired_seeds.py "$noleak8" "$noleak8" > /dev/null
 # 19. Step 16 with two validation runs per fold instead of one (--val-fraction 0.2: each
 #     fold's view moves one training run to validation; the same test runs, five seeds;
 #     every training and diagnosis anew), and its two hybrids seed by seed.
 run python offline/workflow.py --dataset "$WORK/kvlcc2_ds" --out "$WORK/kvlcc2_cv5_val2" \
   --hybrid "$CONFIGS/hybrid_mmg.yaml" --seeds 5 --folds 5 --val-fraction 0.2 > /dev/null
-mkdir -p "$OUT/cv5_val2"
 run python docs/results/real/analysis/paired_seeds.py "$WORK/kvlcc2_cv5_val2" \
-  "$OUT/cv5_val2" > /dev/null
+  "$WORK/kvlcc2_cv5_val2" > /dev/null
 run python docs/results/real/analysis/workflow_folds.py "$WORK/kvlcc2_cv5_val2" \
-  "$OUT/cv5_val2" > /dev/null
-for study in heldout cv5 hyd cv5_by_samples cv5_ensemble heldout_warm cv5_noleak cv5_noleak8 \
-    cv5_val2; do
+  "$WORK/kvlcc2_cv5_val2" > /dev/null
+# The current studies into the repository; every other study's report.md, table.md,
+# results.json and figure stay in its WORK folder.
+for study in heldout_warm cv5_noleak; do
   mkdir -p "$OUT/$study"
   cp "$WORK/kvlcc2_$study"/{report.md,table.md,results.json,position_error_over_horizon.png} \
     "$OUT/$study/"

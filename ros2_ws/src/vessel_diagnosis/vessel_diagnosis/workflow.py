@@ -68,7 +68,7 @@ def plan(hybrid_config: Path, lstm_config: Path | None, nominal: str,
     ``warm_start``: the hybrid on the augmented physics starts from the recurrent layers
     of the hybrid on the nominal physics of its fold and seed (its correction still
     starts at zero): on the KVLCC2 folds the correction then learns what the better
-    physics leaves (docs/results/real/README.md, issue #23).
+    physics leaves (docs/results/real/kvlcc2/README.md, issue #23).
     """
     def physics(path: str) -> list[str]:
         return [*common, 'model.physical.kind=physics', f'model.physical.physics={path}']

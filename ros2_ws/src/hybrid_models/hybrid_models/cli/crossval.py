@@ -117,7 +117,7 @@ def folds_of(dataset, args) -> list:
                        args.fold_by, window + horizon, args.fold_balance)
     # Epochs and the served threshold are chosen on the validation runs, and do no harm
     # can weigh a difference against its spread only across two runs or more: on one,
-    # noise decided (KVLCC2 five folds, docs/results/real/README.md).
+    # noise decided (KVLCC2 five folds, docs/results/real/kvlcc2/README.md).
     # Folds deal whole recordings (a recording may hold several runs): count those.
     recording_of = {run: rec for rec, runs in dataset.recordings().items() for run in runs}
 
