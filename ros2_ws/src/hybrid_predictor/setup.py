@@ -15,6 +15,8 @@ setup(
         ('share/' + PACKAGE + '/config', glob('config/*.yaml') + glob('config/*.xml')),
         ('share/' + PACKAGE + '/launch', glob('launch/*.launch.py')),
         ('share/' + PACKAGE + '/models/default', glob('models/default/*')),
+        ('share/' + PACKAGE + '/models/crazyflie_brushless',
+         glob('models/crazyflie_brushless/*')),
     ],
     install_requires=['setuptools'],
     zip_safe=True,

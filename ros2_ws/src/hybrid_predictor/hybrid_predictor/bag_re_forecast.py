@@ -85,7 +85,7 @@ def main(argv=None) -> int:
     from vessel_ros_bridge.messages import seconds_from_stamp
 
     try:
-        model = args.model or default_model_path()
+        model = args.model or default_model_path(args.vessel)
         engine = Forecaster.from_checkpoint(model, args.relative_threshold)
         topic_map = topic_map_for(served_vessel(args.vessel, engine.spec, str(model))[0])
         re_forecast = ReForecast(engine, topic_map, predictor_defaults())

@@ -89,7 +89,7 @@ from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
 from hybrid_predictor_interfaces.srv import Predict
 from vessel_datasets.topic_map import TopicMapError, topic_map_for
 from vessel_datasets.topic_messages import channel_reader
-from vessel_description import VesselError
+from vessel_description import VesselError, load_vessel
 from vessel_physics import frames
 from vessel_ros_bridge import messages
 from vessel_ros_bridge.executors import MultiThreadedExecutor
@@ -111,11 +111,22 @@ CLOCK_TOPIC = '/clock'
 SAY_EVERY_S = 5.0
 
 
-def default_model_path() -> Path:
-    """Return the installed path of the model shipped with this package."""
+def default_model_path(vessel: str = '') -> Path:
+    """
+    Return the installed model shipped for ``vessel`` (a vessel file's name or path).
+
+    The one in ``models/<vessel name>/`` where this package ships one (the Crazyflie),
+    else the default model (the patrol boat; a vessel it does not fit is then refused by
+    ``served_vessel`` in one line).
+    """
     from ament_index_python.packages import get_package_share_directory
 
-    return Path(get_package_share_directory('hybrid_predictor')).joinpath(*DEFAULT_MODEL)
+    share = Path(get_package_share_directory('hybrid_predictor'))
+    if vessel:
+        own = share / 'models' / load_vessel(vessel).name / DEFAULT_MODEL[-1]
+        if own.is_file():
+            return own
+    return share.joinpath(*DEFAULT_MODEL)
 
 
 @dataclass(frozen=True)
@@ -147,7 +158,7 @@ class PredictorNode(Node):
         p = declare_from_specs(self, load_specs(package_config('hybrid_predictor',
                                                                'predictor.yaml')))
         self.p = p
-        path = Path(p['model_path']) if p['model_path'] else default_model_path()
+        path = Path(p['model_path']) if p['model_path'] else default_model_path(p['vessel'])
         self.engine = Forecaster.from_checkpoint(path, p['relative_threshold'])
         self.spec, vessel_note = served_vessel(p['vessel'], self.engine.spec, str(path))
         self.get_logger().info(f'vessel {self.spec.name}: {vessel_note}')

@@ -34,12 +34,14 @@ class RunReplay:
         self.sent: list[tuple[float, str, dict]] = []   # (stamp s, topic, channel values)
 
     def play(self, table: pd.DataFrame, start: float, wait: Callable[[float], None],
-             rate_hz: float | None = None) -> None:
+             rate_hz: float | None = None,
+             before_row: Callable[[int, float], None] | None = None) -> None:
         """
         Publish every row of ``table`` at ``rate_hz`` (the vehicle's), stamped from ``start``.
 
         ``wait(seconds)`` is called while the next row is not due (spin an executor
-        there); row k is stamped ``start + k / rate_hz`` seconds.
+        there); row k is stamped ``start + k / rate_hz`` seconds; ``before_row(k, stamp)``,
+        if given, is called just before its messages go (e.g. a controller's plan).
         """
         rate = rate_hz or self.topic_map.vessel.rate_hz
         began = time.monotonic()
@@ -47,6 +49,8 @@ class RunReplay:
             while (due := k / rate - (time.monotonic() - began)) > 0:
                 wait(min(due, 0.001))
             stamp_s = start + k / rate
+            if before_row is not None:
+                before_row(k, stamp_s)
             channels = channel_values(row, self.topic_map)
             for topic in self.writer.topics:
                 msg = self.writer.message(topic, channels, stamp_from_seconds(stamp_s))

@@ -1,0 +1,171 @@
+"""
+A predictor process at its vehicle's own rate: one forecast per state message, timed.
+
+A simulated flight (or voyage) of the vehicle is published over DDS as the vehicle's own
+messages at its rate (``hybrid_predictor.replay``), into a predictor started with
+``forecast_period`` 0, so that every state is due a forecast. With ``plans``, each state
+is preceded by the run's own next controls as a plan on the predictor's plan topic, as
+a model-predictive controller sends them: a multirotor's rotor speeds held for a second
+overturn it, and such forecasts are withheld as beyond the vehicle's limits. A receiving
+thread takes every forecast as it arrives (a subscriber that lags would lose forecasts
+the node made), and each is timed from the moment its state was due to be published to its
+arrival: the publisher's own lateness counts against the node. Figures: the share of
+states forecast, p50/p99 of that delay, the node's own count of forecasts, and, with
+``busy_core``, the same beside a process that keeps one core busy.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import os
+from pathlib import Path
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+import numpy as np
+
+
+def simulated_run(vehicle: str, seconds: float, seed: int = 0):
+    """Return one simulated run of ``vehicle`` as a table (model frames, one row a sample)."""
+    from vessel_datasets.format import read_dataset
+    from vessel_datasets.simulate import main as simulate
+
+    with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(io.StringIO()):
+        out = Path(tmp) / 'run'
+        code = simulate(['--vessel', vehicle, '--runs', '1', '--seconds', f'{seconds:g}',
+                         '--seed', str(seed), '--out', str(out), '--quiet'])
+        if code:
+            raise RuntimeError(f'simulating {vehicle} failed (exit {code})')
+        ds = read_dataset(out)
+        (run,) = [r for s in ('train', 'val', 'test') for r in ds.run_ids(s)]
+        return ds.load(run)
+
+
+def _spin(executor) -> None:
+    from rclpy.executors import ExternalShutdownException
+
+    try:
+        executor.spin()
+    except ExternalShutdownException:   # the measurement is over
+        pass
+
+
+def cpu_seconds(pid: int) -> float:
+    """Return the CPU time (user + system, s) a process and its threads have used."""
+    fields = Path(f'/proc/{pid}/stat').read_text().rpartition(')')[2].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def busy_core() -> subprocess.Popen:
+    """Start a process that keeps one core busy until it is killed."""
+    return subprocess.Popen([sys.executable, '-c', 'while True: pass'])
+
+
+def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
+            plans: bool = True) -> dict:
+    """Publish ``samples`` states after a window at the vehicle's rate; time their forecasts."""
+    from diagnostic_msgs.msg import DiagnosticArray
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile
+    from vessel_bringup.processes import Children, rclpy_options
+
+    from hybrid_models.engine import Forecaster
+    from hybrid_predictor.replay import RunReplay
+    from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
+    from vessel_datasets.topic_map import topic_map_for
+    from vessel_description import load_vessel
+    from vessel_ros_bridge import messages as m
+    from vessel_ros_bridge.names import DEFAULT_NAMESPACE
+
+    spec = load_vessel(vehicle)
+    topic_map = topic_map_for(spec)
+    window = Forecaster.from_checkpoint(model).window
+    rows = window + samples
+    flight = simulated_run(vehicle, (rows + spec.horizon + 10) / spec.rate_hz + 1.0)
+    table = flight.iloc[:rows]
+    controls = flight[list(spec.control_names)].to_numpy(float)
+    os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', ROS_DOMAIN_ID=os.environ.get(
+        'ROS_DOMAIN_ID', str(140 + os.getpid() % 40)))
+    arrivals: dict[float, float] = {}
+    health: dict[str, str] = {}     # the predictor's latest /diagnostics values
+    spinner = busy_process = None
+    logs = Path(tempfile.mkdtemp(prefix='bench_rate_'))
+    with Children(logs) as children:
+        predictor = children.node('hybrid_predictor', 'predictor', '--log-level', 'warn', params={
+            'model_path': str(model), 'vessel': vehicle, 'forecast_period': 0.0})
+        rclpy.init(**rclpy_options())
+        try:
+            node = rclpy.create_node('bench_rate_client')
+            replay = RunReplay(node, topic_map, m.message_types(topic_map))
+            plan_pub = node.create_publisher(ControlPlan, f'{DEFAULT_NAMESPACE}/control_plan',
+                                             10)
+
+            def send_plan(k: int, stamp: float) -> None:
+                plan = ControlPlan(control_names=list(spec.control_names),
+                                   control_units=list(spec.control_units),
+                                   values=controls[k:k + spec.horizon + 10].ravel().tolist(),
+                                   step_period=spec.dt)
+                plan.header.stamp = m.stamp_from_seconds(stamp)
+                plan_pub.publish(plan)
+            # In the nodes' namespace, where the predictor's relative 'forecast' resolves.
+            receiver = rclpy.create_node('bench_rate_receiver', namespace=DEFAULT_NAMESPACE)
+            receiver.create_subscription(
+                Forecast, 'forecast',
+                lambda msg: arrivals.setdefault(round(m.seconds_from_stamp(msg.header.stamp),
+                                                      6), time.time()),
+                QoSProfile(depth=rows))
+            receiver.create_subscription(
+                DiagnosticArray, '/diagnostics', lambda msg: health.update(
+                    {v.key: v.value for s in msg.status if 'predictor' in s.name
+                     for v in s.values}), 10)
+            executor = SingleThreadedExecutor()
+            executor.add_node(receiver)
+            spinner = threading.Thread(target=_spin, args=(executor,), daemon=True)
+            spinner.start()
+            deadline = time.monotonic() + 180
+            while receiver.count_publishers('forecast') == 0 or \
+                    node.count_subscribers(replay.writer.topics[-1]) == 0:
+                if time.monotonic() > deadline:
+                    return {'error': 'the predictor did not start within 180 s'}
+                time.sleep(0.1)
+            time.sleep(2.0)                        # its warm-up compiles every batch size
+            if busy:
+                busy_process = busy_core()
+            cpu = cpu_seconds(predictor.pid)
+            start = time.time()
+            replay.play(table, start, time.sleep, before_row=send_plan if plans else None)
+            time.sleep(1.0)                        # the last forecasts in flight
+            cpu = cpu_seconds(predictor.pid) - cpu
+            time.sleep(1.5)                        # its next /diagnostics
+        finally:
+            if busy_process is not None:
+                busy_process.kill()
+                busy_process.wait()
+            rclpy.try_shutdown()
+            if spinner is not None:
+                spinner.join(timeout=5)
+    stamps = [round(start + k / spec.rate_hz, 6) for k in range(window, rows)]
+    delays = np.array([arrivals[s] - s for s in stamps if s in arrivals]) * 1e3
+    out = {'vehicle': vehicle, 'rate_hz': spec.rate_hz, 'states_timed': len(stamps),
+           'forecasts_received': int(len(delays)),
+           'share_received': round(len(delays) / len(stamps), 3), 'busy_core': busy,
+           'plans': plans,
+           'predictor_cpu_ms_per_state': round(cpu / rows * 1e3, 2)}
+    counts = {k: int(health.get(k, 0)) for k in (
+        'forecasts_published', 'forecasts_withheld', 'states_skipped_as_backlog')}
+    # Withheld forecasts were made and refused on their content (a state beyond the
+    # vehicle's limits: a multirotor's rotor speeds held for a second overturn it).
+    out.update(predictor_counts=counts, share_forecast_by_node=round(
+        (counts['forecasts_published'] + counts['forecasts_withheld']) / len(stamps), 3))
+    said = (logs / 'predictor.log').read_text(errors='replace').splitlines()
+    out['predictor_warnings'] = sorted({line.split(': ', 1)[-1][:160] for line in said
+                                        if 'WARN' in line or 'ERROR' in line})[:10]
+    if len(delays):
+        out.update(p50_ms=round(float(np.percentile(delays, 50)), 2),
+                   p99_ms=round(float(np.percentile(delays, 99)), 2))
+    return out
