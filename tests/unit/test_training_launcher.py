@@ -68,3 +68,25 @@ def test_a_training_ends_with_the_tool_that_started_it(tmp_path):
         if not gone_within(pid, 10):
             os.kill(pid, signal.SIGKILL)
             raise AssertionError(f'the {what} outlived the tool that started it')
+
+
+def test_a_launcher_first_used_by_a_pool_worker_outlives_the_pool(tmp_path):
+    """The kernel's parent-death signal follows the forking thread: issue 50's table 2 smoke."""
+    toy = write_toy_dataset(tmp_path / 'toy', n_runs=4, n_samples=200)
+    overrides = [f'dataset={toy}', *SHORT]
+    # A fresh tool process: its first training starts the launcher from a pool worker,
+    # the next one comes after the pool is gone (as reproduce_table2's bound variant).
+    script = (
+        'import sys\n'
+        'from concurrent.futures import ThreadPoolExecutor\n'
+        'from pathlib import Path\n'
+        'from hybrid_models.training.jobs import train_job\n'
+        f'smoke, out, overrides = {str(SMOKE)!r}, Path({str(tmp_path)!r}), {overrides!r}\n'
+        'with ThreadPoolExecutor(1) as pool:\n'
+        "    first = pool.submit(train_job, 'in_pool', smoke, overrides, out / 'a').result()\n"
+        "after = train_job('after_pool', smoke, overrides, out / 'b')\n"
+        "print(first['status'], '|', after['status'])\n")
+    done = subprocess.run([sys.executable, '-c', script], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == 'ok | ok', done.stdout

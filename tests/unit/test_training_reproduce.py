@@ -23,7 +23,30 @@ def test_reproduce_table2_smoke_writes_table_figures_and_claims(tmp_path, capsys
                                      'bound_placement_at_15pct'}
     for name in ('REPORT.md', 'table.md', 'rmse_vs_threshold.png'):
         assert (out / name).stat().st_size > 0
-    # A second run keeps every finished model instead of training again.
+    # A second run keeps every finished model instead of training again, and their
+    # evaluation instead of evaluating again (it took a minute under load: issue 50).
+    capsys.readouterr()
     assert reproduce_table2.main(argv) == 0
-    trainings = json.loads((out / 'results.json').read_text())['trainings']
-    assert all(t['status'] == 'kept' for t in trainings)
+    assert 'evaluation kept' in capsys.readouterr().err
+    again = json.loads((out / 'results.json').read_text())
+    assert all(t['status'] == 'kept' for t in again['trainings'])
+    assert again['rows'] == result['rows']
+
+
+def test_an_evaluation_is_kept_only_while_its_models_dataset_and_arguments_are_unchanged(
+        tmp_path):
+    from hybrid_models.studies.table2 import evaluation_fingerprint, kept_evaluation
+
+    toy = write_toy_dataset(tmp_path / 'toy', n_runs=3, n_samples=50)
+    model = tmp_path / 'model.safetensors'
+    model.write_bytes(b'weights')
+    fingerprint = evaluation_fingerprint([model], toy, ['--horizon', '100'])
+    results = tmp_path / 'results.json'
+    assert not kept_evaluation(results, fingerprint)             # none yet
+    results.write_text(json.dumps({'evaluation_fingerprint': fingerprint}))
+    assert kept_evaluation(results, fingerprint)
+    assert evaluation_fingerprint([model], toy, ['--horizon', '50']) != fingerprint
+    model.write_bytes(b'weights, trained on')
+    assert evaluation_fingerprint([model], toy, ['--horizon', '100']) != fingerprint
+    results.write_text('{not json')
+    assert not kept_evaluation(results, fingerprint)

@@ -11,7 +11,8 @@ time on one thread each, every training capped so that the whole run fits
 trained once more with its bound applied during training (relative threshold 15 %),
 and everything is evaluated on the test runs: table.md, results.json, figures, and
 REPORT.md with the paper's claims checked. Re-running the same command resumes: a
-finished model is kept, a killed one continues from its last epoch.
+finished model is kept, a killed one continues from its last epoch, and the evaluation
+is kept when its models, dataset and arguments are unchanged.
 """
 
 import argparse
@@ -25,6 +26,8 @@ from hybrid_models.cli.evaluate import main as evaluate
 from hybrid_models.studies.table2 import (
     THRESHOLD,
     check_claims,
+    evaluation_fingerprint,
+    kept_evaluation,
     plan,
     report,
     run_training,
@@ -81,11 +84,18 @@ def main(argv=None) -> int:
                         best.replace('-2P', '-1P')]
     if args.smoke:
         eval_args += ['--horizon', '100', '--window', '20', '--stride', '100']
-    rc = evaluate(eval_args)
-    if rc != 0:
-        print('reproduce_table2.py: error: evaluation failed', file=sys.stderr)
-        return rc
+    fingerprint = evaluation_fingerprint([Path(d) / 'model.safetensors' for d in dirs],
+                                         args.dataset, eval_args)
+    if kept_evaluation(args.out / 'results.json', fingerprint):
+        print('evaluation kept: its models, dataset and arguments are unchanged',
+              file=sys.stderr)
+    else:
+        rc = evaluate(eval_args)
+        if rc != 0:
+            print('reproduce_table2.py: error: evaluation failed', file=sys.stderr)
+            return rc
     result = json.loads((args.out / 'results.json').read_text())
+    result['evaluation_fingerprint'] = fingerprint
     result['trainings'] = sorted(results, key=lambda r: r['label'])
     result['best_2p_by_validation'] = best
     result['claims'] = check_claims(result, best, bound_label)

@@ -7,6 +7,8 @@ package's configs; ``run_training`` trains one of them resumably; ``check_claims
 ``reproduce_table2`` program (hybrid_models.cli.reproduce_table2) runs them in order.
 """
 
+import hashlib
+import json
 import math
 from pathlib import Path
 
@@ -14,6 +16,7 @@ from hybrid_models.checkpoint import CheckpointError, read_header
 from hybrid_models.evaluation import smallest_threshold
 from hybrid_models.training.config import config_dir
 from hybrid_models.training.jobs import train_job
+from vessel_datasets.format import MANIFEST
 
 PHYSICAL = ['min', 'pro', 'lin', 'hyd', 'min+lin', 'pro+lin', 'min+hyd', 'pro+hyd']
 PAPER_NAME = {'min': 'Min', 'pro': 'Pro', 'lin': 'Lin', 'hyd': 'Hyd', 'min+lin': 'Min+Lin',
@@ -48,6 +51,30 @@ def run_training(label, config, overrides, args, work: Path, limit_min: float) -
     if config.name != 'qlag.yaml' and not args.smoke:
         sets.append(f'training.time_limit_minutes={limit_min:.1f}')
     return train_job(label, config, sets, work / label)
+
+
+def evaluation_fingerprint(model_files, dataset, eval_args) -> str:
+    """
+    Return what an evaluation's figures depend on, as one digest.
+
+    The bytes of every model evaluated, the dataset's manifest (its runs, split and
+    provenance) and the evaluation's arguments: equal digests give equal figures, so a
+    study run again over kept trainings keeps its evaluation too.
+    """
+    digest = hashlib.sha256()
+    for path in model_files:
+        digest.update(Path(path).read_bytes())
+    digest.update((Path(dataset) / MANIFEST).read_bytes())
+    digest.update(json.dumps([str(a) for a in eval_args]).encode())
+    return digest.hexdigest()
+
+
+def kept_evaluation(results: Path, fingerprint: str) -> bool:
+    """Return whether ``results`` (a results.json) holds the evaluation of ``fingerprint``."""
+    try:
+        return json.loads(Path(results).read_text()).get('evaluation_fingerprint') == fingerprint
+    except (OSError, ValueError):
+        return False
 
 
 def val_score(run_dir: Path) -> float:

@@ -64,15 +64,31 @@ class Launcher:
     """The tool's side of its launcher process: start trainings, wait for their ends."""
 
     def __init__(self) -> None:
-        self.proc = subprocess.Popen(
-            [sys.executable, '-m', LAUNCHER_MODULE], stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE, env={**os.environ, PARENT_ENV: str(os.getpid())})
         self.lock = threading.Lock()
         self.ids = itertools.count()
         self.started: dict[int, Future] = {}   # id -> the training's process id
         self.ended: dict[int, Future] = {}     # id -> its exit code
-        threading.Thread(target=self._read, name='launcher reader', daemon=True).start()
+        # Forked by a thread that lives as long as the launcher: the kernel sends the
+        # parent-death signal when the forking THREAD ends. Forked by a tool's pool
+        # worker, the launcher was ended with the pool, and the training the tool started
+        # next (reproduce_table2's bound variant) failed with "exit -15" on every new run.
+        spawned: Future = Future()
+        threading.Thread(target=self._spawn_and_read, args=(spawned,), name='launcher',
+                         daemon=True).start()
+        self.proc = spawned.result()
         atexit.register(self.close)
+
+    def _spawn_and_read(self, spawned: Future) -> None:
+        try:
+            proc = subprocess.Popen(
+                [sys.executable, '-m', LAUNCHER_MODULE], stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE, env={**os.environ, PARENT_ENV: str(os.getpid())})
+        except OSError as exc:
+            spawned.set_exception(exc)
+            return
+        spawned.set_result(proc)
+        self.proc = proc
+        self._read()
 
     def close(self) -> None:
         """End the launcher once its trainings are done (it ends with the tool anyway)."""
