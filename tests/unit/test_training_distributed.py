@@ -124,7 +124,8 @@ def test_a_killed_rank_resumes_and_ends_as_an_unbroken_job(toy, tmp_path):
     resumed = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
     assert resumed.returncode == 0, resumed.stderr[-3000:]
     assert f'resuming at epoch {at_kill}' in resumed.stderr
-    assert [r['epoch'] for r in log_of(out)] == list(range(32))   # no gap, no repeat
+    # The physics alone's reference (epoch -1) once, then every epoch: no gap, no repeat.
+    assert [r['epoch'] for r in log_of(out)] == [-1, *range(32)]
 
     cmd, env = torchrun(toy, tmp_path / 'unbroken', LONG)
     unbroken = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
