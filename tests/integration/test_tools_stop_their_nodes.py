@@ -21,8 +21,9 @@ from .conftest import REPO, wait_for
 
 pytestmark = pytest.mark.ros
 
+# The soak's client processes: Python ones (--client python), or C ones (the default).
 NODES = ('lib/ship_sim_node/simulator', 'lib/hybrid_predictor/predictor',
-         'benchmarks/soak.py client')   # the soak's client processes
+         'benchmarks/soak.py client', 'what_if_c.load')
 BENCH = str(REPO / 'offline' / 'bench.py')
 
 
