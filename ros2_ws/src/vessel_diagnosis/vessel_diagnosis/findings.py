@@ -110,26 +110,46 @@ def kept_out_records(ident: Identification, library: Library, nominal: Physics) 
     Selected, selected again at the final point, an interval excluding zero, but too
     small an effect on forecasts: their size and why.
     """
+    return [_kept_out_record(name, info, library, nominal)
+            for name, info in ident.kept_out.items() if info['certain']]
+
+
+def within_input_course_records(ident: Identification, library: Library,
+                                nominal: Physics) -> list[dict]:
+    """
+    Return the kept-out terms that would be certain but for the input-course floor.
+
+    Their effect on every state's predictions stays below how much those predictions
+    depend on the controls' unknown course between samples: reported as such, not as
+    found (``Identifier.input_course_floor``).
+    """
     out = []
     for name, info in ident.kept_out.items():
-        if not info['certain']:
-            continue
-        cand = library.by_name[name]
-        record = {'term': name, 'category': cand.category, 'kind': cand.kind,
-                  'dof': cand.dofs, 'unit': cand.unit, 'description': cand.description,
-                  'coefficient': info['coefficient'], 'ci95': list(info['ci95']),
-                  'ci95_noise': list(info['ci95_noise']),
-                  'heterogeneity': info['heterogeneity'],
-                  'inclusion_probability': info['inclusion_probability'],
-                  'held_out_gain': info['held_out_gain'], 'why_kept_out': info['why']}
-        if cand.kind == 'parameter':
-            nominal_value = nominal.parameter(cand.target)
-            record.update({'parameter': cand.target, 'nominal': nominal_value,
-                           'value': nominal_value + info['coefficient'],
-                           'relative_change': (info['coefficient'] / nominal_value
-                                               if nominal_value else None)})
-        out.append(record)
+        if info.get('statistically_certain') and not info['above_input_course_floor']:
+            record = _kept_out_record(name, info, library, nominal)
+            record.update(prediction_effect=info['prediction_effect'],
+                          input_course_floor=info['input_course_floor'])
+            out.append(record)
     return out
+
+
+def _kept_out_record(name: str, info: Mapping, library: Library, nominal: Physics) -> dict:
+    """Return the record of one kept-out term: its size, interval and why."""
+    cand = library.by_name[name]
+    record = {'term': name, 'category': cand.category, 'kind': cand.kind,
+              'dof': cand.dofs, 'unit': cand.unit, 'description': cand.description,
+              'coefficient': info['coefficient'], 'ci95': list(info['ci95']),
+              'ci95_noise': list(info['ci95_noise']),
+              'heterogeneity': info['heterogeneity'],
+              'inclusion_probability': info['inclusion_probability'],
+              'held_out_gain': info['held_out_gain'], 'why_kept_out': info['why']}
+    if cand.kind == 'parameter':
+        nominal_value = nominal.parameter(cand.target)
+        record.update({'parameter': cand.target, 'nominal': nominal_value,
+                       'value': nominal_value + info['coefficient'],
+                       'relative_change': (info['coefficient'] / nominal_value
+                                           if nominal_value else None)})
+    return record
 
 
 def _size(record: Mapping) -> str:

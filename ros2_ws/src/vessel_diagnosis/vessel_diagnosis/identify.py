@@ -52,6 +52,7 @@ from vessel_diagnosis.design import (
     candidate_columns,
 )
 from vessel_diagnosis.library import Library
+from vessel_diagnosis.predict import Predictor
 from vessel_diagnosis.selection import (
     BlockStats,
     BootstrapLasso,
@@ -699,8 +700,10 @@ class Identifier:
         Their size and interval at the fitted point with them, why they were left out,
         and whether they are certain: selected again, at least ``inclusion_threshold`` of
         the time, when offered alone at the final point (every kept term fitted), an
-        interval that excludes zero, and a size of at least ``kept_out_share`` of the
-        library's physically relevant scale (a GM 20 % low is; a damping 5 % off is not).
+        interval that excludes zero, a size of at least ``kept_out_share`` of the
+        library's physically relevant scale (a GM 20 % low is; a damping 5 % off is not),
+        and an effect on some state's predictions larger than the recordings' own
+        ambiguity about the controls between samples (``input_course_floor``).
         """
         names = [n for n in pruned if n in selected and n in values and n != CURRENT
                  and n in self.pruned_gain]
@@ -720,9 +723,11 @@ class Identifier:
                                                             list(kept) + names))
         boot = self.intervals(design, segments, full)
         hetero = self.heterogeneity(design, segments, names)
+        floor = self.input_course_floor(segments, full)
         out = {}
         for name in names:
             k = [j for j, c in enumerate(design.columns) if c.candidate == name][0]
+            effect = np.sqrt(np.mean((values[name] * design.X[..., k]) ** 2, axis=(0, 1)))
             ci = self.widened(values[name], boot[:, k], hetero.get(name, {}).get('tau', 0.0))
             p_final = float(probability[name])
             relevant = self.settings.validation.kept_out_share * self.library.absolute_scale(
@@ -735,7 +740,30 @@ class Identifier:
                          'selected_probability': selected[name].inclusion_probability,
                          'held_out_gain': float(self.pruned_gain[name]),
                          'why': pruned[name],
-                         'certain': bool(p_final >= cfg.inclusion_threshold
-                                         and not ci[0] <= 0.0 <= ci[1]
-                                         and abs(values[name]) >= relevant)}
+                         'prediction_effect': effect.tolist(),
+                         'input_course_floor': floor.tolist(),
+                         'above_input_course_floor': bool((effect > floor).any()),
+                         'statistically_certain': bool(p_final >= cfg.inclusion_threshold
+                                                       and not ci[0] <= 0.0 <= ci[1]
+                                                       and abs(values[name]) >= relevant)}
+            out[name]['certain'] = (out[name]['statistically_certain']
+                                    and out[name]['above_input_course_floor'])
         return out
+
+    def input_course_floor(self, segments: Segments, point: Point) -> np.ndarray:
+        """
+        Return, per state, how much the predictions depend on the controls between samples.
+
+        The RMS difference (over the regression's segments) between free runs with each
+        sample's controls held over its period and with their linear course: the
+        recordings cannot say which is right, so a term whose effect on every state's
+        predictions stays below it cannot be told from that ambiguity. At the patrol
+        boat's 1 Hz it reached 10 % of the roll rate's RMS and let an added mass in roll
+        pass as "found with certainty" in a case with nothing concealed (issue 46).
+        """
+        predictor = Predictor(point.physics(self.nominal, self.library), segments.dt,
+                              self.settings.regression.substeps)
+        cur = segments.currents(point.currents)
+        runs = [predictor.simulate(segments.z0, segments.psi0, segments.c, cur, hold=hold)
+                [:, segments.skip:] for hold in (False, True)]
+        return np.sqrt(np.mean((runs[1] - runs[0]) ** 2, axis=(0, 1)))

@@ -40,6 +40,7 @@ from vessel_diagnosis.findings import (
     kept_out_records,
     status_of,
     summary_line,
+    within_input_course_records,
     write_augmented,
 )
 from vessel_diagnosis.identify import CURRENT, Identification, Identifier, Point
@@ -282,6 +283,7 @@ def diagnose(recordings: Sequence[str | Path], physics: str | Path | Physics | N
         'summary': summary_line(status, records, missing, signals, named.kept_out),
         'findings': records,
         'kept_out': named.kept_out,
+        'within_input_course': within_input_course_records(ident, library, nominal),
         'candidates': candidate_records(ident, library),
         'rounds': ident.rounds,
         'excitation': {'enough': enough, 'not_checkable': missing,

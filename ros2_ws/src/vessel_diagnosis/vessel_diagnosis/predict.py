@@ -140,19 +140,20 @@ class Predictor:
         return self._to_ground(self._advance(x, c0, c1, current), current)
 
     def simulate(self, z0: np.ndarray, psi0: np.ndarray, c: np.ndarray,
-                 current: np.ndarray | None = None) -> np.ndarray:
+                 current: np.ndarray | None = None, hold: bool = False) -> np.ndarray:
         """
         Free-run predictions from measured initial states: (n, H, n_state) for c (n, H + 1, m).
 
         Row i starts from ``z0[i]``, ``psi0[i]`` at the time of ``c[i, 0]``; step k of the
-        output is the state at the time of ``c[i, k + 1]``.
+        output is the state at the time of ``c[i, k + 1]``. ``hold``: each sample's
+        controls held over its period (zero-order) instead of the linear course.
         """
         c = np.asarray(c, float)
         horizon = c.shape[1] - 1
         x = self._to_water(np.asarray(z0, float), np.asarray(psi0, float), current)
         out = np.empty((len(x), horizon, self.n_state))
         for k in range(horizon):
-            x = self._advance(x, c[:, k], c[:, k + 1], current)
+            x = self._advance(x, c[:, k], c[:, k] if hold else c[:, k + 1], current)
             out[:, k] = self._to_ground(x, current)
         return out
 

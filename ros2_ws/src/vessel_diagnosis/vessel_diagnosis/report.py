@@ -203,6 +203,23 @@ def _kept_out_table(kept_out: list[dict]) -> list[str]:
     return lines + ['']
 
 
+def _within_input_course(records: list[dict], states) -> list[str]:
+    lines = ['Not reported as found: the selection took these with certainty, but their '
+             "effect on every state's predictions stays below how much the predictions "
+             "depend on the controls' unknown course between samples (held over each "
+             'period or changing linearly): the recordings cannot tell them from it.', '']
+    for f in records:
+        worst = max(range(len(states)), key=lambda i: f['prediction_effect'][i]
+                    / max(f['input_course_floor'][i], 1e-300))
+        size = (f'{f["parameter"]} {_pct(f["relative_change"])}'
+                if f.get('relative_change') is not None else
+                f'{_fmt(f["coefficient"], 4)} {f["unit"]}')
+        lines.append(f'- `{f["term"]}` ({f["category"]}, {size}): effect on '
+                     f'{states[worst]} {_fmt(f["prediction_effect"][worst], 3)} against '
+                     f'{_fmt(f["input_course_floor"][worst], 3)}')
+    return lines + ['']
+
+
 def _metrics_tables(metrics: dict, states, state_units) -> list[str]:
     one = metrics.get('one_step_rmse', {})
     fc = metrics.get('forecast', {})
@@ -371,6 +388,9 @@ def _name_section(result: dict) -> list[str]:
         lines += [result['summary'], '']
     if result.get('kept_out'):
         lines += _kept_out_table(result['kept_out'])
+    if result.get('within_input_course'):
+        lines += _within_input_course(result['within_input_course'],
+                                      result['vessel']['states'])
     pruned = [c for c in result['candidates'] if c['status'].startswith('pruned')]
     if pruned:
         lines += ['Selected but dropped:', '']
