@@ -11,7 +11,9 @@ thread takes every forecast as it arrives (a subscriber that lags would lose for
 the node made), and each is timed from the moment its state was due to be published to its
 arrival: the publisher's own lateness counts against the node. Figures: the share of
 states forecast, p50/p99 of that delay, the node's own count of forecasts, and, with
-``busy_core``, the same beside a process that keeps one core busy.
+``busy_core``, the same beside a process that keeps one core busy. ``simulator_cost``
+measures the simulator node flying the vehicle at its rate: CPU per period, and the rate
+its state messages arrive at.
 """
 
 from __future__ import annotations
@@ -169,3 +171,45 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
         out.update(p50_ms=round(float(np.percentile(delays, 50)), 2),
                    p99_ms=round(float(np.percentile(delays, 99)), 2))
     return out
+
+
+def simulator_cost(vehicle: str, periods: int) -> dict:
+    """Run the simulator node of ``vehicle``; return its CPU per period and arrival rate."""
+    from nav_msgs.msg import Odometry
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import QoSProfile
+    from vessel_bringup.processes import Children, rclpy_options
+
+    from vessel_description import load_vessel
+
+    spec = load_vessel(vehicle)
+    os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', ROS_DOMAIN_ID=os.environ.get(
+        'ROS_DOMAIN_ID', str(140 + os.getpid() % 40)))
+    arrivals: list[float] = []
+    with Children(Path(tempfile.mkdtemp(prefix='bench_sim_'))) as children:
+        sim = children.node('ship_sim_node', 'simulator', '--log-level', 'warn',
+                            params={'vessel': vehicle})
+        rclpy.init(**rclpy_options())
+        try:
+            node = rclpy.create_node('bench_sim_receiver')
+            node.create_subscription(Odometry, '/vessel/odom',
+                                     lambda msg: arrivals.append(time.monotonic()),
+                                     QoSProfile(depth=1000))
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            deadline = time.monotonic() + 120
+            while len(arrivals) < spec.rate_hz * 2:           # two seconds flown
+                if time.monotonic() > deadline or sim.poll() is not None:
+                    return {'error': 'the simulator published no state within 120 s'}
+                executor.spin_once(timeout_sec=0.1)
+            cpu, first = cpu_seconds(sim.pid), len(arrivals)
+            while len(arrivals) < first + periods and time.monotonic() < deadline + 120:
+                executor.spin_once(timeout_sec=0.1)
+            cpu, count = cpu_seconds(sim.pid) - cpu, len(arrivals) - first
+        finally:
+            rclpy.try_shutdown()
+    span = arrivals[-1] - arrivals[first]
+    return {'vehicle': vehicle, 'rate_hz': spec.rate_hz, 'periods': count,
+            'cpu_ms_per_period': round(cpu / max(count, 1) * 1e3, 2),
+            'received_hz': round((count - 1) / span, 1) if span > 0 else None}
