@@ -162,13 +162,6 @@ def differences(claimed: dict, now: dict) -> list[str]:
     return out
 
 
-def _nominal_file(source: str) -> Path:
-    """Return the nominal physics file a findings.json names (packaged or repo-relative)."""
-    from vessel_physics.files import config_dir
-    packaged = 'vessel_physics/config/'
-    return config_dir() / source[len(packaged):] if source.startswith(packaged) else REPO / source
-
-
 def _trajectory(metrics: dict) -> dict:
     return {name: (f or {}).get('trajectory', {}).get('mean')
             for name, f in (metrics or {}).get('forecast', {}).items()}
@@ -179,19 +172,19 @@ def diagnosis_figures(name: str, dataset: Path, work: Path, whole: bool = False)
     Return a committed diagnosis's figures on ``dataset`` as today's code gives them.
 
     The held-out trajectory error [m] of the nominal and the committed augmented physics
-    on the held-out runs its findings name; where ``DIAGNOSES`` says so, the diagnosis
-    (or ``whole``) the diagnosis is run whole and its own figures and named terms are
-    returned instead.
+    on the held-out runs its findings name; where ``DIAGNOSES`` says so (or ``whole``),
+    the diagnosis is run whole and its own figures and named terms are returned instead.
     """
     from vessel_diagnosis.evaluate import evaluate
     from vessel_diagnosis.pipeline import diagnose, nominal_physics
     from vessel_diagnosis.recordings import load_recordings, recordings_vessel
     from vessel_diagnosis.settings import load_settings
+    from vessel_physics.files import find_file
     from vessel_physics.physics_file import load_physics
 
     _, folder, rerun = DIAGNOSES[name]
     found = json.loads((REPO / folder / 'findings.json').read_text())
-    nominal_file = _nominal_file(found['nominal_physics']['source'])
+    nominal_file = find_file(found['nominal_physics']['source'], beside=[REPO])
     if rerun or whole:
         result = diagnose([dataset], nominal_file, work / f'{name}_diagnosis')
         return {'trajectory': _trajectory(result['metrics']),

@@ -6,7 +6,7 @@ import pytest
 import yaml
 
 from vessel_physics.errors import ConfigError
-from vessel_physics.files import config_dir
+from vessel_physics.files import config_dir, display_name, find_file
 from vessel_physics.patrol.params import params_from_dict
 from vessel_physics.physics_file import load_physics
 from vessel_physics.simulation.config import (
@@ -123,3 +123,12 @@ def test_vessel_file_errors_are_one_line(tmp_path):
         assert words in str(info.value) and '\n' not in str(info.value)
     with pytest.raises(ConfigError, match='no such file'):
         load_physics(Path(tmp_path) / 'nope.yaml')
+
+
+def test_a_packaged_file_is_found_by_the_name_reports_give_it(tmp_path, monkeypatch):
+    packaged = config_dir() / 'kvlcc2_hsva_mmg.yaml'
+    name = display_name(packaged)
+    assert name == 'vessel_physics/config/kvlcc2_hsva_mmg.yaml'
+    monkeypatch.chdir(tmp_path)                # not found by the working directory
+    assert find_file(name) == packaged
+    assert find_file(name[:-len('.yaml')]) == packaged

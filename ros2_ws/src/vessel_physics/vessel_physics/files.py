@@ -11,6 +11,9 @@ from typing import Any
 from vessel_description.resources import data_dir, read_yaml
 from vessel_physics.errors import ConfigError, did_you_mean
 
+# How reports name a packaged file: vessel_physics/config/<its path in config_dir()>.
+PACKAGED = ('vessel_physics', 'config')
+
 
 def config_dir() -> Path:
     """Directory of the packaged physics and simulation files (source tree or install)."""
@@ -25,10 +28,14 @@ def find_file(name: str | os.PathLike, beside: Iterable[Path | None] = (),
     A name without a suffix gets ``.yaml``. Relative names are looked up in the folders
     ``beside`` (e.g. the folder of the vessel file or physics file that names it), then
     the working directory, then this package's config folder; the error lists them all.
+    A packaged file's ``display_name`` (``vessel_physics/config/...``, as reports and
+    findings.json name it) finds that file.
     """
     path = Path(name)
     if not path.suffix:
         path = path.with_suffix('.yaml')
+    if path.parts[:2] == PACKAGED and (config_dir() / Path(*path.parts[2:])).is_file():
+        return config_dir() / Path(*path.parts[2:])
     if path.is_absolute():
         if path.is_file():
             return path
@@ -93,6 +100,6 @@ def display_name(path: str | os.PathLike) -> str:
     """Name a file for a report: packaged ones by package (vessel_physics/config/...)."""
     path = Path(path)
     try:
-        return f'vessel_physics/config/{path.resolve().relative_to(config_dir().resolve())}'
+        return '/'.join([*PACKAGED, str(path.resolve().relative_to(config_dir().resolve()))])
     except ValueError:
         return str(path)
