@@ -34,9 +34,12 @@ def _segments(rudder_step: float, dt: float, n: int = 8, horizon: int = 4):
 
 def _floor(rudder_step: float, dt: float = 0.5) -> np.ndarray:
     nominal = load_physics(TANKER.physics, TANKER)
-    identifier = Identifier(nominal, load_library(None, nominal.family),
-                            load_settings(family=nominal.family.name))
-    return identifier.input_course_floor(_segments(rudder_step, dt), Point({}))
+    settings = load_settings(family=nominal.family.name)
+    identifier = Identifier(nominal, load_library(None, nominal.family), settings)
+    seg = _segments(rudder_step, dt)
+    linear = Predictor(nominal, dt, settings.regression.substeps).simulate(
+        seg.z0, seg.psi0, seg.c)
+    return identifier.input_course_floor(seg, Point({}), linear)
 
 
 def test_no_floor_where_the_controls_do_not_change_between_samples():

@@ -187,17 +187,22 @@ def _findings_table(findings: list[dict]) -> list[str]:
     return lines
 
 
+def _kept_out_size(f: dict) -> str:
+    """Return a kept-out term's size: its parameter's change, or its coefficient."""
+    if f.get('parameter'):
+        return (f'{f["parameter"]} {_fmt(f["nominal"], 4)} -> {_fmt(f["value"], 4)} '
+                f'({_pct(f["relative_change"])})')
+    return f'{_fmt(f["coefficient"], 4)} {f["unit"]}'
+
+
 def _kept_out_table(kept_out: list[dict]) -> list[str]:
     lines = ['Found with certainty, but kept out of the augmented physics because it changes '
              'held-out forecasts too little (safety-relevant changes belong here too: read '
              'them):', '', '| term | category | size | 95 % interval | inclusion probability '
              '| why kept out |', '|---|---|---|---|---|---|']
     for f in kept_out:
-        size = (f'{f["parameter"]} {_fmt(f["nominal"], 4)} -> {_fmt(f["value"], 4)} '
-                f'({_pct(f["relative_change"])})' if f.get('parameter') else
-                f'{_fmt(f["coefficient"], 4)} {f["unit"]}')
         ci = f['ci95']
-        lines.append(f'| `{f["term"]}` | {f["category"]} | {size} | '
+        lines.append(f'| `{f["term"]}` | {f["category"]} | {_kept_out_size(f)} | '
                      f'[{_fmt(ci[0], 4)}, {_fmt(ci[1], 4)}] | '
                      f'{_fmt(f["inclusion_probability"], 2)} | {f["why_kept_out"]} |')
     return lines + ['']
@@ -211,10 +216,7 @@ def _within_input_course(records: list[dict], states) -> list[str]:
     for f in records:
         worst = max(range(len(states)), key=lambda i: f['prediction_effect'][i]
                     / max(f['input_course_floor'][i], 1e-300))
-        size = (f'{f["parameter"]} {_pct(f["relative_change"])}'
-                if f.get('relative_change') is not None else
-                f'{_fmt(f["coefficient"], 4)} {f["unit"]}')
-        lines.append(f'- `{f["term"]}` ({f["category"]}, {size}): effect on '
+        lines.append(f'- `{f["term"]}` ({f["category"]}, {_kept_out_size(f)}): effect on '
                      f'{states[worst]} {_fmt(f["prediction_effect"][worst], 3)} against '
                      f'{_fmt(f["input_course_floor"][worst], 3)}')
     return lines + ['']
