@@ -46,7 +46,11 @@ def test_an_evaluation_is_kept_only_while_its_models_dataset_and_arguments_are_u
     results.write_text(json.dumps({'evaluation_fingerprint': fingerprint}))
     assert kept_evaluation(results, fingerprint)
     assert evaluation_fingerprint([model], toy, ['--horizon', '50']) != fingerprint
+    run = toy / json.loads((toy / 'manifest.json').read_text())['runs'][0]['file']
+    run.write_bytes(run.read_bytes() + b' ')      # a run changed, its manifest not
+    changed = evaluation_fingerprint([model], toy, ['--horizon', '100'])
+    assert changed != fingerprint
     model.write_bytes(b'weights, trained on')
-    assert evaluation_fingerprint([model], toy, ['--horizon', '100']) != fingerprint
+    assert evaluation_fingerprint([model], toy, ['--horizon', '100']) != changed
     results.write_text('{not json')
     assert not kept_evaluation(results, fingerprint)

@@ -13,10 +13,10 @@ import math
 from pathlib import Path
 
 from hybrid_models.checkpoint import CheckpointError, read_header
+from hybrid_models.data import dataset_hash
 from hybrid_models.evaluation import smallest_threshold
 from hybrid_models.training.config import config_dir
 from hybrid_models.training.jobs import train_job
-from vessel_datasets.format import MANIFEST
 
 PHYSICAL = ['min', 'pro', 'lin', 'hyd', 'min+lin', 'pro+lin', 'min+hyd', 'pro+hyd']
 PAPER_NAME = {'min': 'Min', 'pro': 'Pro', 'lin': 'Lin', 'hyd': 'Hyd', 'min+lin': 'Min+Lin',
@@ -57,14 +57,14 @@ def evaluation_fingerprint(model_files, dataset, eval_args) -> str:
     """
     Return what an evaluation's figures depend on, as one digest.
 
-    The bytes of every model evaluated, the dataset's manifest (its runs, split and
-    provenance) and the evaluation's arguments: equal digests give equal figures, so a
+    The bytes of every model evaluated, the dataset (``data.dataset_hash``: its manifest
+    and run files) and the evaluation's arguments: equal digests give equal figures, so a
     study run again over kept trainings keeps its evaluation too.
     """
     digest = hashlib.sha256()
     for path in model_files:
         digest.update(Path(path).read_bytes())
-    digest.update((Path(dataset) / MANIFEST).read_bytes())
+    digest.update(dataset_hash(dataset).encode())
     digest.update(json.dumps([str(a) for a in eval_args]).encode())
     return digest.hexdigest()
 
