@@ -135,7 +135,7 @@ class Stream:
     floor: float = math.inf
     reach_s: float = 0.0
     counts: StreamCounts = field(default_factory=StreamCounts)
-    _samples: Samples | None = None
+    _samples: Samples = field(init=False, repr=False)
 
     def __post_init__(self):
         self._samples = Samples(len(self.channels))
@@ -143,7 +143,7 @@ class Stream:
     @property
     def latest_time(self) -> float | None:
         """Return the stamp of the newest accepted sample, or None."""
-        return self._samples.time(-1) if len(self._samples) else None
+        return self._samples.time(-1) if self._samples else None
 
     def reject(self, reason: str, message: str) -> str:
         """Count a rejection for ``reason`` (one of REJECTIONS); return the message."""
@@ -152,7 +152,7 @@ class Stream:
 
     def content_reason(self, t: float, values: dict[str, float]) -> str | None:
         """Count and return why a sample's content is unusable (not its time order)."""
-        have = set(values) | (set(self.channels) if len(self._samples) else set())
+        have = set(values) | (set(self.channels) if self._samples else set())
         missing = [c for c in self.channels if c not in have]
         if missing:
             return self.reject('incomplete', f'{self.name}: first sample lacks {missing}')
@@ -166,11 +166,11 @@ class Stream:
         if reason:
             return reason
         samples = self._samples
-        if len(samples):
+        if samples:
             last = dict(zip(self.channels, samples.last_row().tolist(), strict=True))
             values = {**last, **values}  # a partial sample completes from the last one
         row = [float(values[c]) for c in self.channels]
-        if len(samples) and t <= (newest := samples.time(-1)):
+        if samples and t <= (newest := samples.time(-1)):
             if t == newest:
                 return self.reject('duplicate', f'{self.name}: duplicate stamp t={t}')
             return self.reject('out_of_order', f'{self.name}: stamp t={t} older than the '
@@ -201,7 +201,7 @@ class Stream:
         A held stream covers a grid point with a sample at most ``max_gap`` before it;
         an interpolated one with samples on both sides at most ``max_gap`` apart.
         """
-        if not len(self._samples):
+        if not self._samples:
             return f'no {self.name} received', 0
         times, _ = self.arrays()
         if self.hold:
