@@ -123,8 +123,9 @@ def node_latency(model: Path, samples: int) -> dict:
     """Publish inputs to a predictor process; time state publish -> forecast received."""
     from vessel_bringup.processes import Children
 
-    os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', ROS_DOMAIN_ID=os.environ.get(
-        'ROS_DOMAIN_ID', str(180 + os.getpid() % 40)))
+    from .node_rate import confine_dds
+
+    confine_dds()
     # The predictor is stopped however this ends, SIGINT/SIGTERM/SIGHUP included.
     with Children() as children:
         children.node('hybrid_predictor', 'predictor', '--log-level', 'warn',

@@ -30,6 +30,10 @@ import time
 
 import numpy as np
 
+# Steps a plan reaches past the horizon: a forecast that finds the previous state's plan
+# (the newest not yet taken) still has a whole horizon of it.
+PLAN_MARGIN = 10
+
 
 def simulated_run(vehicle: str, seconds: float, seed: int = 0):
     """Return one simulated run of ``vehicle`` as a table (model frames, one row a sample)."""
@@ -45,6 +49,12 @@ def simulated_run(vehicle: str, seconds: float, seed: int = 0):
         ds = read_dataset(out)
         (run,) = [r for s in ('train', 'val', 'test') for r in ds.run_ids(s)]
         return ds.load(run)
+
+
+def confine_dds() -> None:
+    """Keep DDS traffic on this host, in the caller's domain or one of this process's own."""
+    os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', ROS_DOMAIN_ID=os.environ.get(
+        'ROS_DOMAIN_ID', str(180 + os.getpid() % 40)))
 
 
 def _spin(executor) -> None:
@@ -69,7 +79,7 @@ def busy_core() -> subprocess.Popen:
 
 def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
             plans: bool = True) -> dict:
-    """Publish ``samples`` states after a window at the vehicle's rate; time their forecasts."""
+    """Publish a window and ``samples`` states more at the vehicle's rate; time the forecasts."""
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -77,6 +87,7 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     from vessel_bringup.processes import Children, rclpy_options
 
     from hybrid_models.engine import Forecaster
+    from hybrid_predictor.node import FORECAST_TOPIC, PLAN_TOPIC
     from hybrid_predictor.replay import RunReplay
     from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
     from vessel_datasets.topic_map import topic_map_for
@@ -88,11 +99,10 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     topic_map = topic_map_for(spec)
     window = Forecaster.from_checkpoint(model).window
     rows = window + samples
-    flight = simulated_run(vehicle, (rows + spec.horizon + 10) / spec.rate_hz + 1.0)
+    flight = simulated_run(vehicle, (rows + spec.horizon + PLAN_MARGIN) / spec.rate_hz + 1.0)
     table = flight.iloc[:rows]
     controls = flight[list(spec.control_names)].to_numpy(float)
-    os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', ROS_DOMAIN_ID=os.environ.get(
-        'ROS_DOMAIN_ID', str(140 + os.getpid() % 40)))
+    confine_dds()
     arrivals: dict[float, float] = {}
     health: dict[str, str] = {}     # the predictor's latest /diagnostics values
     spinner = busy_process = None
@@ -104,20 +114,21 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
         try:
             node = rclpy.create_node('bench_rate_client')
             replay = RunReplay(node, topic_map, m.message_types(topic_map))
-            plan_pub = node.create_publisher(ControlPlan, f'{DEFAULT_NAMESPACE}/control_plan',
-                                             10)
+
+            # In the nodes' namespace, where the predictor's relative topics resolve.
+            receiver = rclpy.create_node('bench_rate_receiver', namespace=DEFAULT_NAMESPACE)
+            plan_pub = receiver.create_publisher(ControlPlan, PLAN_TOPIC, 10)
 
             def send_plan(k: int, stamp: float) -> None:
+                steps = controls[k:k + spec.horizon + PLAN_MARGIN]
                 plan = ControlPlan(control_names=list(spec.control_names),
                                    control_units=list(spec.control_units),
-                                   values=controls[k:k + spec.horizon + 10].ravel().tolist(),
-                                   step_period=spec.dt)
+                                   values=steps.ravel().tolist(), step_period=spec.dt)
                 plan.header.stamp = m.stamp_from_seconds(stamp)
                 plan_pub.publish(plan)
-            # In the nodes' namespace, where the predictor's relative 'forecast' resolves.
-            receiver = rclpy.create_node('bench_rate_receiver', namespace=DEFAULT_NAMESPACE)
+
             receiver.create_subscription(
-                Forecast, 'forecast',
+                Forecast, FORECAST_TOPIC,
                 lambda msg: arrivals.setdefault(round(m.seconds_from_stamp(msg.header.stamp),
                                                       6), time.time()),
                 QoSProfile(depth=rows))
@@ -130,7 +141,7 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
             spinner = threading.Thread(target=_spin, args=(executor,), daemon=True)
             spinner.start()
             deadline = time.monotonic() + 180
-            while receiver.count_publishers('forecast') == 0 or \
+            while receiver.count_publishers(FORECAST_TOPIC) == 0 or \
                     node.count_subscribers(replay.writer.topics[-1]) == 0:
                 if time.monotonic() > deadline:
                     return {'error': 'the predictor did not start within 180 s'}
@@ -151,7 +162,9 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
             rclpy.try_shutdown()
             if spinner is not None:
                 spinner.join(timeout=5)
-    stamps = [round(start + k / spec.rate_hz, 6) for k in range(window, rows)]
+    # Due a forecast: every state from the one that completes the first window (row
+    # window - 1) on; the node counts its forecasts from there too.
+    stamps = [round(start + k / spec.rate_hz, 6) for k in range(window - 1, rows)]
     delays = np.array([arrivals[s] - s for s in stamps if s in arrivals]) * 1e3
     out = {'vehicle': vehicle, 'rate_hz': spec.rate_hz, 'states_timed': len(stamps),
            'forecasts_received': int(len(delays)),
@@ -184,8 +197,7 @@ def simulator_cost(vehicle: str, periods: int) -> dict:
     from vessel_description import load_vessel
 
     spec = load_vessel(vehicle)
-    os.environ.update(ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST', ROS_DOMAIN_ID=os.environ.get(
-        'ROS_DOMAIN_ID', str(140 + os.getpid() % 40)))
+    confine_dds()
     arrivals: list[float] = []
     with Children(Path(tempfile.mkdtemp(prefix='bench_sim_'))) as children:
         sim = children.node('ship_sim_node', 'simulator', '--log-level', 'warn',
