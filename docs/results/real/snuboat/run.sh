@@ -49,6 +49,9 @@ done
 # the forecasts that diverged.
 run python docs/results/real/analysis/study_by_fold.py "$WORK/snuboat_bykind" \
   "$OUT/bykind" > /dev/null
+# Are the held-out kinds new to the correction, and does its bound matter there (issue #47)?
+run python docs/results/real/analysis/unseen_kind_probe.py "$WORK/snuboat_bykind" hybrid \
+  "$OUT/bykind" > /dev/null
 # Cross-validated bands (docs/results/real/bands.md): five folds x five seeds of the
 # hybrid, folds dealt by samples (the default; fold seeds 0 and 1) and by count of
 # recordings (the former dealing); bands calibrated on each study's out-of-fold

@@ -1,0 +1,126 @@
+"""
+Measure whether a held-out manoeuvre kind is new to the correction and its bound matters.
+
+Usage:  tools/with_env.sh python docs/results/real/analysis/unseen_kind_probe.py STUDY LABEL [OUT]
+STUDY is the --out folder of ``offline/crossval.py --fold-by ...``, LABEL one of its
+hybrids; the table goes to stdout and, with OUT, to OUT/unseen_kind_probe.md.
+
+Issue #47 asked for a bound that fades towards the physics where the correction's inputs
+leave what training covered. Before building one, this measures whether that would act
+where the hybrid harms. Per fold and seed:
+
+- **new inputs:** the share of the held-out runs' correction inputs (normalised
+  controls and one-step physics outputs from the measured states, as the LSTM reads
+  them) farther from the training runs than the validation runs' 99th percentile, in
+  the RMS Mahalanobis distance d(x) = sqrt((x - m)^T S^-1 (x - m) / n) (m, S from the
+  training runs; S + 1e-3 I), and farther than twice that radius: what a bound scaled
+  by the distance would cut;
+- **the bound's effect:** the per-state RMSE over the held-out forecasts at the served
+  threshold and at a tenth of it, beside the physics alone's.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+import sys
+
+import numpy as np
+import torch
+
+from hybrid_models.checkpoint import load_model
+from hybrid_models.data import forecast_windows, load_runs
+from hybrid_models.evaluation import PhysicsOnly
+from hybrid_models.metrics import forecast_metrics
+from hybrid_models.models import predict
+from hybrid_models.studies.crossval import read_study, run_dir
+from hybrid_models.training.train import MODEL_FILE
+from vessel_datasets.format import read_dataset
+
+QUANTILE = 0.99   # of the validation inputs' distance: "inside what training covered"
+RIDGE = 1e-3      # on the normalised inputs' covariance
+
+
+@torch.no_grad()
+def correction_inputs(model, runs) -> np.ndarray:
+    """Return the LSTM's inputs (N, n_control + n_state) along runs, from measured states."""
+    rows = []
+    for run in runs:
+        z, c = torch.as_tensor(run.z[:-1].copy()), torch.as_tensor(run.c[:-1].copy())
+        rows.append(torch.cat([model.nc(c), model.nz(model.physical(z, c))], -1).numpy())
+    return np.concatenate(rows).astype(np.float64)
+
+
+def distance(x: np.ndarray, train: np.ndarray) -> np.ndarray:
+    """Return the RMS Mahalanobis distance of rows x from the rows of ``train``."""
+    cov = np.atleast_2d(np.cov(train, rowvar=False)) + RIDGE * np.eye(train.shape[1])
+    w = (x - train.mean(axis=0)) @ np.linalg.cholesky(np.linalg.inv(cov))
+    return np.sqrt((w * w).sum(axis=-1) / x.shape[1])
+
+
+def probe(study: Path, label: str) -> list[dict]:
+    """Return one row per fold and seed (and one per fold for the physics alone)."""
+    folds, result = read_study(study)
+    protocol = result['protocol']
+    spec = read_dataset(folds[0].path).vessel
+    rows = []
+    for fold in folds:
+        train, val, test = (load_runs(fold.path, split, spec) for split in
+                            ('train', 'val', 'test'))
+        windows = forecast_windows(test, protocol['window'], protocol['horizon'],
+                                   protocol['stride'], protocol['target'])
+
+        def rmse(pred, windows=windows):
+            return forecast_metrics(pred, windows.z_target, spec)['rmse']
+
+        for seed in protocol['seeds']:
+            model, _ = load_model(run_dir(study, label, fold, seed) / MODEL_FILE)
+            fitted = correction_inputs(model, train)
+            radius = np.quantile(distance(correction_inputs(model, val), fitted), QUANTILE)
+            d = distance(correction_inputs(model, test), fitted)
+            served = model.relative_threshold
+            with model.served_at(served / 10):
+                tenth = rmse(predict(model, windows))
+            rows.append({'fold': fold.index, 'forecasts': len(windows), 'seed': seed,
+                         'beyond': float(np.mean(d > radius)),
+                         'beyond_twice': float(np.mean(d > 2 * radius)),
+                         'threshold': served, 'served': rmse(predict(model, windows)),
+                         'tenth': tenth})
+        rows.append({'fold': fold.index, 'forecasts': len(windows), 'seed': 'physics alone',
+                     'served': rmse(predict(PhysicsOnly(model.physical), windows))})
+        print(f'fold {fold.index} done', file=sys.stderr, flush=True)
+    return rows
+
+
+def markdown(rows: list[dict]) -> str:
+    """Return the rows as a Markdown table (RMSE per state: served / a tenth of it)."""
+    states = list(rows[0]['served'])
+    lines = ['| fold (forecasts) | seed | inputs beyond the radius | beyond twice it | '
+             'served T | ' + ' | '.join(f'{s} RMSE at T / at T/10' for s in states) + ' |',
+             '|---|---|---|---|---|' + '---|' * len(states)]
+    for r in rows:
+        if 'beyond' not in r:
+            cells = ' | '.join(f"{r['served'][s]:.4f}" for s in states)
+            lines.append(f"| {r['fold']} ({r['forecasts']}) | physics alone | | | | {cells} |")
+            continue
+        cells = ' | '.join(f"{r['served'][s]:.4f} / {r['tenth'][s]:.4f}" for s in states)
+        lines.append(f"| {r['fold']} ({r['forecasts']}) | {r['seed']} | {r['beyond']:.0%} | "
+                     f"{r['beyond_twice']:.0%} | {r['threshold']:g} | {cells} |")
+    return '\n'.join(lines) + '\n'
+
+
+def main(argv: list[str]) -> int:
+    """Print (and with OUT write) the probe's table for one hybrid of a by-kind study."""
+    if len(argv) not in (2, 3):
+        print(__doc__, file=sys.stderr)
+        return 2
+    table = markdown(probe(Path(argv[0]), argv[1]))
+    print(table)
+    if len(argv) == 3:
+        out = Path(argv[2])
+        out.mkdir(parents=True, exist_ok=True)
+        (out / 'unseen_kind_probe.md').write_text(table)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))
