@@ -16,7 +16,12 @@ where the hybrid harms. Per fold and seed:
   training runs; S + 1e-3 I), and farther than twice that radius: what a bound scaled
   by the distance would cut;
 - **the bound's effect:** the per-state RMSE over the held-out forecasts at the served
-  threshold and at a tenth of it, beside the physics alone's.
+  threshold and at a tenth of it, beside the physics alone's;
+- **the seeds' disagreement:** served as one ensemble (the mean of their corrections at
+  every step), the share of held-out steps whose spread of the members' corrections
+  (per state, in units of the residual scale) exceeds the validation forecasts' 99th
+  percentile: what a bound scaled by the disagreement would cut; and the ensemble's
+  per-state RMSE.
 """
 
 from __future__ import annotations
@@ -30,6 +35,7 @@ import torch
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import forecast_windows, load_runs
 from hybrid_models.evaluation import PhysicsOnly
+from hybrid_models.hybrid_step import correction
 from hybrid_models.metrics import forecast_metrics
 from hybrid_models.models import predict
 from hybrid_models.studies.crossval import read_study, run_dir
@@ -55,6 +61,28 @@ def distance(x: np.ndarray, train: np.ndarray) -> np.ndarray:
     cov = np.atleast_2d(np.cov(train, rowvar=False)) + RIDGE * np.eye(train.shape[1])
     w = (x - train.mean(axis=0)) @ np.linalg.cholesky(np.linalg.inv(cov))
     return np.sqrt((w * w).sum(axis=-1) / x.shape[1])
+
+
+@torch.no_grad()
+def ensemble_forecast(members: list, windows) -> tuple[np.ndarray, np.ndarray]:
+    """Return the seeds' ensemble forecasts (B, H, n) and their corrections' spread."""
+    z_window, c_window, c_future = (torch.as_tensor(a) for a in (
+        windows.z_window, windows.c_window, windows.c_future))
+    recurrent = [m.start(z_window, c_window) for m in members]
+    weights = [m.step_weights() for m in members]
+    z, states, spreads = z_window[:, -1], [], []
+    for k in range(c_future.shape[1]):
+        z_phy = members[0].physical(z, c_future[:, k])
+        corrections = []
+        for i, m in enumerate(members):
+            res, recurrent[i] = correction(weights[i], z_phy, c_future[:, k], recurrent[i],
+                                           m.bound_mode)
+            corrections.append(res)
+        corrections = torch.stack(corrections)
+        spreads.append((corrections.std(0, unbiased=False) / members[0].residual_std).numpy())
+        z = z_phy + corrections.mean(0)
+        states.append(z)
+    return torch.stack(states, 1).numpy(), np.stack(spreads, 1).reshape(-1, z.shape[-1])
 
 
 def probe(study: Path, label: str) -> list[dict]:
@@ -85,6 +113,16 @@ def probe(study: Path, label: str) -> list[dict]:
                          'beyond_twice': float(np.mean(d > 2 * radius)),
                          'threshold': served, 'served': rmse(predict(model, windows)),
                          'tenth': tenth})
+        members = [load_model(run_dir(study, label, fold, seed) / MODEL_FILE)[0].eval()
+                   for seed in protocol['seeds']]
+        validation = forecast_windows(val, protocol['window'], protocol['horizon'],
+                                      max(1, protocol['horizon'] // 3), protocol['target'])
+        radius = np.quantile(ensemble_forecast(members, validation)[1], QUANTILE, axis=0)
+        pred, spread = ensemble_forecast(members, windows)
+        beyond = np.mean(spread > radius, axis=0).tolist()
+        rows.append({'fold': fold.index, 'forecasts': len(windows), 'seed': 'ensemble',
+                     'spread_beyond': dict(zip(spec.state_names, beyond, strict=True)),
+                     'served': rmse(pred)})
         rows.append({'fold': fold.index, 'forecasts': len(windows), 'seed': 'physics alone',
                      'served': rmse(predict(PhysicsOnly(model.physical), windows))})
         print(f'fold {fold.index} done', file=sys.stderr, flush=True)
@@ -98,6 +136,13 @@ def markdown(rows: list[dict]) -> str:
              'served T | ' + ' | '.join(f'{s} RMSE at T / at T/10' for s in states) + ' |',
              '|---|---|---|---|---|' + '---|' * len(states)]
     for r in rows:
+        if 'spread_beyond' in r:
+            shares = ', '.join(f'{s} {v:.0%}' for s, v in r['spread_beyond'].items())
+            cells = ' | '.join(f"{r['served'][s]:.4f}" for s in states)
+            lines.append(f"| {r['fold']} ({r['forecasts']}) | ensemble of the seeds "
+                         f"(steps whose spread is beyond the radius: {shares}) | | | | "
+                         f"{cells} |")
+            continue
         if 'beyond' not in r:
             cells = ' | '.join(f"{r['served'][s]:.4f}" for s in states)
             lines.append(f"| {r['fold']} ({r['forecasts']}) | physics alone | | | | {cells} |")
