@@ -36,6 +36,41 @@ def test_the_nanodrone_diagnosis_run_whole_names_its_documented_terms(capsys):
     assert code == 0 and not out['moved'], out['moved']
 
 
+@pytest.mark.slow
+@pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} (third-party recordings) is absent')
+def test_the_readme_real_data_studies_repeat_their_seed_0(capsys):
+    code = claims.main(['check', '--only', 'snuboat', 'kvlcc2_hsva', '--studies'])
+    out = json.loads(capsys.readouterr().out)
+    assert sorted(out['studies']) == sorted(claims.STUDIES)
+    assert all(out['studies'][s]['rows'] for s in claims.STUDIES)
+    assert code == 0 and not out['moved'], out['moved']
+
+
+def test_a_study_whose_seed_0_moves_or_loses_to_its_physics_is_named():
+    """The committed seed 0 is the claim: 3 % off, a row lost or a hybrid behind its physics."""
+    name = 'snuboat_heldout'
+    committed = claims._seed0_rows(json.loads(
+        (claims.REPO / claims.STUDIES[name][1]).read_text())['rows'])
+    assert committed['hybrid']['physics'] == 'hyd physics'
+    same = {'exit': 0, 'rows': committed}
+    assert claims.study_differences(name, same) == []
+    rows = json.loads(json.dumps(committed))
+    rows['lstm']['trajectory'] *= 1.02                      # within
+    rows['hybrid']['trajectory'] = 0.4                      # moved, still ahead of 0.427
+    moved = claims.study_differences(name, {'exit': 0, 'rows': rows})
+    assert moved == ['snuboat_heldout: hybrid seed 0 held-out trajectory error 0.4, the '
+                     'committed 0.2567 (tolerance 3%)'], moved
+    rows['hybrid']['trajectory'] = committed['hybrid']['trajectory']
+    rows['hyd physics']['trajectory'] = 0.25
+    moved = claims.study_differences(name, {'exit': 0, 'rows': rows})
+    assert any('hybrid no longer forecasts better than its physics' in m for m in moved)
+    del rows['lstm']
+    assert "snuboat_heldout: row 'lstm' no longer reported" in claims.study_differences(
+        name, {'exit': 0, 'rows': rows})
+    assert claims.study_differences(name, {'exit': 1, 'rows': {}}) == [
+        "snuboat_heldout: the study's tool ended with exit 1"]
+
+
 def test_a_diagnosis_whose_figures_or_terms_move_is_named():
     """The findings are the claim: a figure 2 % off, a lost order or other terms fail."""
     found = json.loads((claims.REPO / claims.DIAGNOSES['kvlcc2_hsva'][1] /
