@@ -25,8 +25,8 @@ REPO = Path(__file__).resolve().parents[2]
 @pytest.fixture(scope='module')
 def skiff_model(tmp_path_factory):
     """Return (vessel file, checkpoint) of a smoke-trained skiff hybrid."""
+    from hybrid_models.training import train
     from hybrid_models.training.config import load_config
-    from hybrid_models.training.train import train
     from tests.unit.test_any_vessel import RATE_HZ, VESSEL, simulate, write_bag
     from vessel_datasets import bag_to_dataset
 

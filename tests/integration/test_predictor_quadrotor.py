@@ -35,8 +35,8 @@ def flight_table(truth) -> pd.DataFrame:
 @pytest.fixture(scope='module')
 def quad_model(tmp_path_factory):
     """Return the checkpoint of a smoke-trained MinQ+Lin hybrid of the Crazyflie."""
+    from hybrid_models.training import train
     from hybrid_models.training.config import load_config
-    from hybrid_models.training.train import train
     from tests.unit.tracks import spatial_flight
     from vessel_datasets.format import write_dataset
     from vessel_description import load_vessel

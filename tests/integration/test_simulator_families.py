@@ -83,8 +83,8 @@ def test_the_otter_obeys_commands_in_its_own_joint_names(launcher, ros_node):
                                         'otter'])
 def trained(request, tmp_path_factory):
     """Return (vessel, checkpoint) of a smoke hybrid trained on the simulator's data."""
+    from hybrid_models.training import train
     from hybrid_models.training.config import load_config
-    from hybrid_models.training.train import train
     from vessel_datasets import simulate
     from vessel_description import load_vessel
 

@@ -19,8 +19,8 @@ import yaml
 from hybrid_models.checkpoint import load_model
 from hybrid_models.cli import evaluate
 from hybrid_models.physical import build_physical
+from hybrid_models.training import train
 from hybrid_models.training.config import load_config
-from hybrid_models.training.train import train
 from vessel_datasets import bag_to_dataset
 from vessel_datasets.format import read_dataset
 from vessel_description import load_vessel, parse_vessel

@@ -156,7 +156,7 @@ def test_folds_by_kind_hold_out_each_kind_and_always_train_on_the_unmatched(toy,
 
 
 def test_two_physics_of_one_name_are_told_apart_by_their_model():
-    from hybrid_models.evaluation import physics_label
+    from hybrid_models.physical.identity import physics_label
 
     taken = set()
     for owner in ('hybrid', 'hybrid, no mirror images'):

@@ -11,8 +11,8 @@ from hybrid_models.checkpoint import load_model
 from hybrid_models.data import forecast_windows, load_runs
 from hybrid_models.engine import Forecaster
 from hybrid_models.ensemble import EnsembleError, EnsembleHybrid, pack
-from hybrid_models.evaluation import physics_identity
 from hybrid_models.models import build_model, predict
+from hybrid_models.physical.identity import physics_identity
 from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
 from hybrid_models.training import load_config, train
 from hybrid_models.training.ensemble import serve_ensemble

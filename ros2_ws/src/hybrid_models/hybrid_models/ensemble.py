@@ -25,6 +25,7 @@ from torch import nn
 from hybrid_models.bound import ServedThreshold
 from hybrid_models.hybrid_step import ENSEMBLE_KIND, ensemble_step
 from hybrid_models.nets import HybridModel
+from hybrid_models.physical.identity import physics_identity
 
 KIND = ENSEMBLE_KIND
 
@@ -135,9 +136,6 @@ def pack(members: Sequence[HybridModel]) -> EnsembleHybrid:
     another vessel or rate, another architecture, or another physics (its fingerprint:
     description and every learned value).
     """
-    # evaluation imports models, which builds ensembles: imported here, not at the top.
-    from hybrid_models.evaluation import physics_identity
-
     members = list(members)
     for i, m in enumerate(members):
         if not isinstance(m, HybridModel):

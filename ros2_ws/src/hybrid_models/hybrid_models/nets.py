@@ -32,6 +32,7 @@ from hybrid_models.bound import (
     schedule_of,
     step_bounds,
 )
+from hybrid_models.compiled_physics import CompiledStep, compile_step
 from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weights
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import PhysicalModel
@@ -103,13 +104,11 @@ class PhysicalModule(nn.Module):
         For training on a CPU once the model is fitted: its values are constants of the
         program, so ``fit`` or a new state dict afterwards needs another ``compile``.
         """
-        from hybrid_models.compiled_physics import compile_step
         self.compiled = compile_step(self.numpy_model())
 
     def forward(self, z: torch.Tensor, c: torch.Tensor) -> torch.Tensor:
         """Predict the next state with the buffers' values."""
         if self.compiled is not None:
-            from hybrid_models.compiled_physics import CompiledStep
             return CompiledStep.apply(z, c, self.compiled)
         return self.model.step(z, c, dict(self.named_buffers()))
 

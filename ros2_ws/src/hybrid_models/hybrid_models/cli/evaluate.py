@@ -34,13 +34,12 @@ from hybrid_models.ensemble import is_hybrid
 from hybrid_models.evaluation import (
     PhysicsOnly,
     evaluate_model,
-    physics_identity,
-    physics_label,
     residual_share,
     seed_row,
     test_windows,
     threshold_sweep,
 )
+from hybrid_models.physical.identity import physics_identity, physics_label
 from hybrid_models.selection import harms
 from hybrid_models.training.train import MODEL_FILE
 from vessel_datasets.format import DatasetError

@@ -35,9 +35,10 @@ from hybrid_models.checkpoint import CheckpointError, load_model, read_header
 from hybrid_models.cross_bands import HeldOut
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.ensemble import is_hybrid
-from hybrid_models.evaluation import PhysicsOnly, physics_identity, physics_label, seed_row
+from hybrid_models.evaluation import PhysicsOnly, seed_row
 from hybrid_models.metrics import StepErrors, forecast_metrics
 from hybrid_models.models import predict
+from hybrid_models.physical.identity import physics_identity, physics_label
 from hybrid_models.selection import harms
 from hybrid_models.training.ensemble import serve_ensemble
 from hybrid_models.training.jobs import train_job

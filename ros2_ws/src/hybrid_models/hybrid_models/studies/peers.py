@@ -29,7 +29,7 @@ from hybrid_models.checkpoint import CheckpointError, read_header
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.evaluation import seed_row
 from hybrid_models.metrics import forecast_metrics
-from hybrid_models.studies.crossval import MODEL_FILE, read_study, run_dir
+from hybrid_models.studies.crossval import MODEL_FILE, Fold, read_study, run_dir
 from vessel_datasets.format import read_dataset
 
 PEER_DIR = Path('offline') / 'peers'
@@ -83,7 +83,6 @@ def study_folds(study: Path, dataset: Path | None = None) -> tuple[list, dict]:
     study (None), the dataset's own split under the vehicle's protocol, with no rows of
     ours (the peers alone).
     """
-    from hybrid_models.studies.crossval import Fold
     if study is None:
         ds = read_dataset(dataset)
         split = ds.manifest['split']

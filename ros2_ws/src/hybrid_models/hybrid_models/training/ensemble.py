@@ -7,7 +7,8 @@ the relative threshold its own validation forecasts choose (the do-no-harm selec
 of a single hybrid, ``train.select_threshold``) with bands calibrated on the same
 forecasts (``train.calibrate_bands``). The validation runs are the members' own: the
 dataset must be the one they were trained on (its hash), else it is refused in one line.
-``train`` calls ``train_ensemble`` when ``training.members`` asks for more than one:
+``hybrid_models.training.train`` calls ``train_ensemble`` when ``training.members`` asks
+for more than one:
 member i is trained with seed ``training.seed + i`` into ``OUT/members/member<i>``
 (a finished member is kept by ``--resume``), then the ensemble is written to
 ``OUT/model.safetensors``.
@@ -29,7 +30,12 @@ from hybrid_models.ensemble import EnsembleError, pack
 from hybrid_models.training.config import ConfigError
 from hybrid_models.training.loop import REFERENCE_EPOCH
 from hybrid_models.training.tasks import RecurrentTask
-from hybrid_models.training.train import MODEL_FILE, calibrate_bands, select_threshold, train
+from hybrid_models.training.train import (
+    MODEL_FILE,
+    calibrate_bands,
+    select_threshold,
+    train_model,
+)
 from vessel_datasets.format import read_dataset
 
 
@@ -85,7 +91,7 @@ def train_ensemble(cfg: dict, out: Path, resume: bool = False, device: str = 'au
         member['training'].update(members=1, seed=cfg['training']['seed'] + i)
         member_out = out / 'members' / f'member{i}'
         if not (resume and (member_out / MODEL_FILE).is_file()):
-            seconds += train(member, member_out, resume=resume, device=device).get(
+            seconds += train_model(member, member_out, resume=resume, device=device).get(
                 'train_seconds') or 0.0
         paths.append(member_out / MODEL_FILE)
         print(f"member {i + 1}/{count} trained (seed {member['training']['seed']})",

@@ -1,11 +1,11 @@
 """
 Train one model from a resolved config: data, physics fit, statistics, fit loop.
 
-``train(cfg, out_dir)`` writes into ``out_dir``: ``model.safetensors`` (the best
+``train_model(cfg, out_dir)`` writes into ``out_dir``: ``model.safetensors`` (the best
 model by validation multistep error, with every figure of its config; a hybrid served
 at the relative threshold its validation runs chose, ``select_threshold``), ``best`` and
 ``last`` checkpoints, ``log.jsonl`` (one line per epoch) and ``config.yaml``.
-Under torchrun every rank calls ``train`` and trains its share
+Under torchrun every rank calls ``train_model`` and trains its share
 (``hybrid_models.training.distributed``); only rank 0 writes those files.
 """
 
@@ -101,20 +101,21 @@ def check_windows(cfg: dict, spec: Vessel, ds: Dataset) -> None:
                 f'horizon (vessel file or training config) or use longer runs')
 
 
-def train(cfg: dict, out_dir: str | Path, resume: bool = False, device: str = 'auto') -> dict:
+def train_model(cfg: dict, out_dir: str | Path, resume: bool = False,
+                device: str = 'auto') -> dict:
     """
     Train the configured model; returns the final checkpoint's config.
 
-    ``device``: auto (a GPU when one is present), cpu or cuda. Launched by torchrun,
-    this process joins the job's process group for the duration of the call.
+    One model: ``training.members`` above 1 (an ensemble) is ``hybrid_models.training.
+    train``'s. ``device``: auto (a GPU when one is present), cpu or cuda. Launched by
+    torchrun, this process joins the job's process group for the duration of the call.
     """
     if cfg['dataset'] is None:
         raise ValueError('the config names no dataset (key "dataset" or --dataset)')
     if cfg['training']['members'] > 1:
-        # The ensemble trains its members with this very function: imported here.
-        from hybrid_models.training.ensemble import train_ensemble
-
-        return train_ensemble(cfg, Path(out_dir), resume, device)
+        raise ValueError(f"train_model trains one model, the config asks for "
+                         f"{cfg['training']['members']} members: use "
+                         f"hybrid_models.training.train")
     # Everything that can refuse the dataset runs before anything is written.
     ds = read_dataset(cfg['dataset'])
     spec = dataset_vessel(cfg, ds)
