@@ -26,13 +26,13 @@ test:  ## quality gates and the default test suite (slow checks excluded)
 
 test-slow:  ## only the slow checks (minutes each)
 	@tools/setup.sh test
-	@tools/with_env.sh tools/run_tests.sh -m slow
+	@tools/with_env.sh tools/run_tests.sh --slow
 
 lint: setup  ## quality gates only
 	@tools/with_env.sh tools/run_tests.sh --lint-only
 
 bench: setup  ## the benchmarks, JSON on stdout (the 10-minute soak: offline/bench.py soak; each suite's short form: offline/bench.py --quick SUITE, run by make test-slow)
-	@for suite in sim convert forecast scale launch; do tools/with_env.sh python offline/bench.py $$suite; done
+	@for suite in sim convert forecast scale launch diagnose; do tools/with_env.sh python offline/bench.py $$suite; done
 
 clean:  ## remove build products and the test-only tools (keeps .venv)
 	rm -rf ros2_ws/build ros2_ws/install ros2_ws/log .pytest_cache .ruff_cache .venv-rostools .venv-bench

@@ -38,6 +38,7 @@ SUITES = {
                                   'conversion workers'),
     'launch': ('benchmarks.launch', "a study's trainings forked from the launcher vs one "
                                     'process each'),
+    'diagnose': ('benchmarks.diagnose', 'a blind diagnosis of ten hours of recordings'),
 }
 
 

@@ -319,7 +319,8 @@ def main(argv=None) -> int:
                         help='these conversions only (default all)')
     parser.add_argument('--whole-diagnoses', action='store_true',
                         help='check: run every committed diagnosis whole (the nanodrone '
-                             "one takes ~8 min; the slow suite's check)")
+                             'one takes ~8 min; the slow suite runs it by its documented '
+                             'command, tests/unit/test_diagnosis_multirotor.py)')
     parser.add_argument('--studies', action='store_true',
                         help="check: re-derive the README table's studies with seed 0 "
                              "(STUDIES; minutes each; the slow suite's check)")

@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Quality gates, then pytest. Arguments go to pytest; --lint-only stops after the gates.
+# Quality gates, then pytest. Arguments go to pytest; --lint-only stops after the gates;
+# --slow runs the slow checks (make test-slow) the way the default suite runs the others.
 # Run through tools/with_env.sh (make test does).
 set -uo pipefail
 
@@ -27,8 +28,21 @@ pytest_run() {
 }
 
 echo "== pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVERY_RANGE)"
-# Arguments (focused files, -m slow, ...) run as given, in one process.
-[ "$#" -gt 0 ] && { pytest_run "$@"; exit $?; }
+marker=()
+if [ "${1:-}" = "--slow" ]; then
+  shift
+  marker=(-m slow)
+  # The slow unit checks are a few long proofs each in a few files: dealt out one test
+  # at a time (tests that share an expensive module fixture carry one xdist_group), so
+  # that no core waits while the other runs a whole file of them.
+  dist=(--dist loadgroup)
+  longest=15
+else
+  dist=(--dist loadfile --no-loadscope-reorder)
+  longest=8
+fi
+# Other arguments (focused files, -m slow, ...) run as given, in one process.
+[ "$#" -gt 0 ] && { pytest_run "${marker[@]}" "$@"; exit $?; }
 # The whole default suite: the unit tests are CPU-bound numerics with no clock in their
 # verdicts, so they share the cores (one process per core, a test file per process).
 # The integration tests, after them, start live ROS graphs that mostly wait on their
@@ -36,8 +50,8 @@ echo "== pytest (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery $ROS_AUTOMATIC_DISCOVER
 workers="$(python -c 'import os; print(max(1, min(len(os.sched_getaffinity(0)), 4)))')"
 # The slowest tests are listed at the end of each run: the suite must stay within its
 # time budget (README), and CI's log then says where the time went.
-pytest_run tests/unit -n "$workers" --dist loadfile --no-loadscope-reorder --durations=8
+pytest_run tests/unit "${marker[@]}" -n "$workers" "${dist[@]}" --durations="$longest"
 unit=$?
-pytest_run tests/integration -n 2 --dist loadfile --durations=8
+pytest_run tests/integration "${marker[@]}" -n 2 --dist loadfile --durations="$longest"
 integration=$?
 [ "$unit" -eq 0 ] && [ "$integration" -eq 0 ]

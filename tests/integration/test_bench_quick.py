@@ -21,7 +21,7 @@ REPO = Path(__file__).resolve().parents[2]
 # Suite -> a figure its JSON must carry (a crash or a renamed figure fails).
 HEADLINE = {'sim': 'real_time_ratio', 'convert': 'converter', 'forecast': 'engine_p50_ms',
             'soak': 'busy_stages_ms', 'outage': 'cases', 'departure': 'steps_scored',
-            'scale': 'training_throughput', 'launch': 'speed_up'}
+            'scale': 'training_throughput', 'launch': 'speed_up', 'diagnose': 'diagnose_s'}
 
 
 @pytest.mark.parametrize('suite', sorted(HEADLINE))

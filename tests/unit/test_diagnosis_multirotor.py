@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from offline import claims
 from vessel_description import load_vessel
 from vessel_diagnosis.admissible import admissible
 from vessel_diagnosis.cli import main as diagnose_main
@@ -239,6 +240,10 @@ WEAK_K_ETA = ROOT / 'docs' / 'results' / 'nanodrone' / 'diagnosis' / 'weak_k_eta
 # The thrust coefficient the flights' accelerometer gives with six pole pairs (import.md),
 # an estimate independent of the diagnosis.
 ACCELEROMETER_K_ETA = 3.5e-8
+# A whole diagnosis of the flights takes minutes; the tests that read the one against
+# rotorpy's file share it: one worker of the slow suite runs them, with time to do it.
+NOMINAL_DIAGNOSIS = [pytest.mark.xdist_group('nanodrone_nominal_diagnosis'),
+                     pytest.mark.timeout(1800)]
 
 
 @pytest.fixture(scope='module')
@@ -269,6 +274,21 @@ def _thrust_findings(findings):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} is absent (third-party flights)')
+@NOMINAL_DIAGNOSIS[0]
+@NOMINAL_DIAGNOSIS[1]
+def test_real_flights_diagnosis_names_its_documented_terms(real):
+    """docs/results/nanodrone/diagnosis/nominal, run again whole by its documented command."""
+    found = real(None)
+    now = {'trajectory': claims._trajectory(found['metrics']),
+           'terms': sorted(r['term'] for r in found['findings'])}
+    assert now['terms'] and now['trajectory']
+    assert claims.diagnosis_differences('nanodrone', now) == []
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} is absent (third-party flights)')
+@NOMINAL_DIAGNOSIS[0]
+@NOMINAL_DIAGNOSIS[1]
 def test_real_flights_name_the_thrust_coefficient_of_the_accelerometer(real):
     findings = real(None)
     thrust = _thrust_findings(findings)
@@ -281,6 +301,7 @@ def test_real_flights_name_the_thrust_coefficient_of_the_accelerometer(real):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} is absent (third-party flights)')
+@pytest.mark.timeout(1800)    # a whole diagnosis of the flights: minutes
 def test_real_flights_with_a_weakened_k_eta_name_it_or_its_look_alikes(real):
     weak = load_physics(WEAK_K_ETA, VESSEL)
     assert weak.parameter('k_eta') == pytest.approx(0.7 * PHYSICS.parameter('k_eta'))

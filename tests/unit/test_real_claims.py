@@ -27,16 +27,9 @@ def test_every_documented_conversion_still_gives_its_documented_figures(capsys):
     assert code == 0 and not out['moved'], out['moved']
 
 
+# The nanodrone diagnosis run whole: test_diagnosis_multirotor.py, which shares it.
 @pytest.mark.slow
-@pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} (third-party recordings) is absent')
-def test_the_nanodrone_diagnosis_run_whole_names_its_documented_terms(capsys):
-    code = claims.main(['check', '--only', 'nanodrone', '--whole-diagnoses'])
-    out = json.loads(capsys.readouterr().out)
-    assert out['figures']['nanodrone']['terms']
-    assert code == 0 and not out['moved'], out['moved']
-
-
-@pytest.mark.slow
+@pytest.mark.timeout(1800)    # a diagnosis and three trainings: minutes
 @pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} (third-party recordings) is absent')
 def test_the_readme_real_data_studies_repeat_their_seed_0(capsys):
     code = claims.main(['check', '--only', 'snuboat', 'kvlcc2_hsva', '--studies'])
