@@ -32,10 +32,11 @@ marker=()
 if [ "${1:-}" = "--slow" ]; then
   shift
   marker=(-m slow)
-  # The slow unit checks are a few long proofs each in a few files: dealt out one test
-  # at a time (tests that share an expensive module fixture carry one xdist_group), so
-  # that no core waits while the other runs a whole file of them.
-  dist=(--dist loadgroup)
+  # The slow unit checks are a few long proofs in a few files: dealt out one test at a
+  # time, so that no core waits while the other runs a whole file of them. (Tests of one
+  # file that share a module's measurement then may each make it: pytest-xdist's
+  # loadgroup, which would keep them together, does nothing under pytest 9.)
+  dist=(--dist load)
   longest=15
 else
   dist=(--dist loadfile --no-loadscope-reorder)

@@ -12,7 +12,9 @@ got faster by finding nothing does not count).
 """
 
 import argparse
+import contextlib
 from pathlib import Path
+import sys
 import tempfile
 import time
 
@@ -48,9 +50,11 @@ def run(args) -> dict:
         simulated = time.perf_counter() - started
         out = Path(tmp) / 'report'
         started = time.perf_counter()
-        code = diagnose.main(['--recordings', str(data), '--physics',
-                              str(data / 'nominal_physics.yaml'), '--out', str(out),
-                              '--quiet'])
+        # The CLI's summary line is for a person: stderr, so stdout stays one JSON.
+        with contextlib.redirect_stdout(sys.stderr):
+            code = diagnose.main(['--recordings', str(data), '--physics',
+                                  str(data / 'nominal_physics.yaml'), '--out', str(out),
+                                  '--quiet'])
         diagnosed = time.perf_counter() - started
         if code != 0:
             raise SystemExit(f'bench.py diagnose: error: the diagnosis ended with exit {code}')

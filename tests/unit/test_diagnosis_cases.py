@@ -53,12 +53,7 @@ def test_control_reports_nothing(identified):
 
 # Fouling stands for the three in the default run; current and wind, each as long again,
 # are slow checks (the full-size proof of all three is test_diagnosis_proof.py).
-# One worker of the slow suite identifies the current scenario for both tests that read it.
-SHARES_CURRENT = pytest.mark.xdist_group('diagnosis_cases_current')
-
-
-@pytest.mark.parametrize('name', [pytest.param('current', marks=[pytest.mark.slow,
-                                                                 SHARES_CURRENT]),
+@pytest.mark.parametrize('name', [pytest.param('current', marks=pytest.mark.slow),
                                   pytest.param('wind', marks=pytest.mark.slow), 'fouling'])
 def test_concealed_effect_is_named(identified, name):
     scenario, named = identified(name)
@@ -72,7 +67,6 @@ def test_concealed_effect_is_named(identified, name):
 
 
 @pytest.mark.slow       # shares the current scenario's identification
-@SHARES_CURRENT
 def test_current_is_estimated_per_run(identified, tmp_path):
     scenario, named = identified('current')
     record = next(r for r in named.records if r['category'] == 'current')

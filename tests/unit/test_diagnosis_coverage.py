@@ -44,8 +44,6 @@ def test_run_spread_draws_each_run_its_own_value_reproducibly():
 
 SCENARIOS = {'kvlcc2_hsva': (('weak_rudder', 'weak_rudder_varying'), 120.0),
              'otter': (('weak_yaw_damping', 'weak_yaw_damping_varying'), 200.0)}
-# A vessel's three tests read one measurement: one worker of the slow suite runs them all.
-VESSELS = [pytest.param(v, marks=pytest.mark.xdist_group(f'coverage_{v}')) for v in SCENARIOS]
 
 
 @cache
@@ -58,7 +56,7 @@ def measured(vessel: str) -> tuple[dict, dict]:
 
 @pytest.mark.slow
 @pytest.mark.timeout(MEASUREMENT_TIMEOUT_S)
-@pytest.mark.parametrize('vessel', VESSELS)
+@pytest.mark.parametrize('vessel', SCENARIOS)
 def test_found_intervals_contain_the_simulated_value(vessel):
     for summary in measured(vessel):
         assert summary['found'] >= MIN_COVERAGE, summary
@@ -68,7 +66,7 @@ def test_found_intervals_contain_the_simulated_value(vessel):
 
 @pytest.mark.slow
 @pytest.mark.timeout(MEASUREMENT_TIMEOUT_S)
-@pytest.mark.parametrize('vessel', VESSELS)
+@pytest.mark.parametrize('vessel', SCENARIOS)
 def test_where_runs_disagree_the_bootstrap_alone_misses_and_the_widened_covers_more(vessel):
     _, varying = measured(vessel)
     assert varying['ci95_noise_truth'] <= 0.5, varying
@@ -82,7 +80,7 @@ def test_where_runs_disagree_the_bootstrap_alone_misses_and_the_widened_covers_m
                    'spread (DerSimonian-Laird, 4 groups) is underestimated; the widened '
                    "intervals contained 69 % (KVLCC2) and 56 % (Otter) of the held-out runs' "
                    'own values over 8 seeds (docs/diagnosis.md, Intervals)')
-@pytest.mark.parametrize('vessel', VESSELS)
+@pytest.mark.parametrize('vessel', SCENARIOS)
 def test_each_held_out_runs_own_value_is_covered_as_claimed(vessel):
     _, varying = measured(vessel)
     assert varying['ci95_held_out'] >= MIN_COVERAGE, varying

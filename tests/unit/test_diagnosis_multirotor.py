@@ -240,10 +240,8 @@ WEAK_K_ETA = ROOT / 'docs' / 'results' / 'nanodrone' / 'diagnosis' / 'weak_k_eta
 # The thrust coefficient the flights' accelerometer gives with six pole pairs (import.md),
 # an estimate independent of the diagnosis.
 ACCELEROMETER_K_ETA = 3.5e-8
-# A whole diagnosis of the flights takes minutes; the tests that read the one against
-# rotorpy's file share it: one worker of the slow suite runs them, with time to do it.
-NOMINAL_DIAGNOSIS = [pytest.mark.xdist_group('nanodrone_nominal_diagnosis'),
-                     pytest.mark.timeout(1800)]
+# A whole diagnosis of the flights takes minutes (the module's fixture keeps each one).
+WHOLE_DIAGNOSIS_TIMEOUT_S = 1800
 
 
 @pytest.fixture(scope='module')
@@ -274,8 +272,7 @@ def _thrust_findings(findings):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} is absent (third-party flights)')
-@NOMINAL_DIAGNOSIS[0]
-@NOMINAL_DIAGNOSIS[1]
+@pytest.mark.timeout(WHOLE_DIAGNOSIS_TIMEOUT_S)
 def test_real_flights_diagnosis_names_its_documented_terms(real):
     """docs/results/nanodrone/diagnosis/nominal, run again whole by its documented command."""
     found = real(None)
@@ -287,8 +284,7 @@ def test_real_flights_diagnosis_names_its_documented_terms(real):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} is absent (third-party flights)')
-@NOMINAL_DIAGNOSIS[0]
-@NOMINAL_DIAGNOSIS[1]
+@pytest.mark.timeout(WHOLE_DIAGNOSIS_TIMEOUT_S)
 def test_real_flights_name_the_thrust_coefficient_of_the_accelerometer(real):
     findings = real(None)
     thrust = _thrust_findings(findings)
@@ -301,7 +297,7 @@ def test_real_flights_name_the_thrust_coefficient_of_the_accelerometer(real):
 
 @pytest.mark.slow
 @pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} is absent (third-party flights)')
-@pytest.mark.timeout(1800)    # a whole diagnosis of the flights: minutes
+@pytest.mark.timeout(WHOLE_DIAGNOSIS_TIMEOUT_S)
 def test_real_flights_with_a_weakened_k_eta_name_it_or_its_look_alikes(real):
     weak = load_physics(WEAK_K_ETA, VESSEL)
     assert weak.parameter('k_eta') == pytest.approx(0.7 * PHYSICS.parameter('k_eta'))
