@@ -39,11 +39,11 @@ from hybrid_models.ensemble import is_hybrid
 from hybrid_models.evaluation import (
     PhysicsOnly,
     evaluate_model,
-    physics_identity,
     seed_row,
     test_windows,
 )
 from hybrid_models.metrics import forecast_metrics
+from hybrid_models.physical.identity import physics_identity
 from hybrid_models.studies import table3
 from hybrid_models.studies.table2 import val_score
 from hybrid_models.training.jobs import train_job
