@@ -118,13 +118,17 @@ def argv_of(name: str, out: Path | None = None) -> list[str]:
                     if not p.stem.endswith('_na')]
         elif a.startswith('REAL/'):
             argv.append(str(REAL / a[len('REAL/'):]))
-        elif a.endswith('.yaml') and '/' in a:
-            argv.append(str(REPO / a))
         else:
-            argv.append(a)
+            argv.append(_in_repo(a))
     if out is not None:
         return argv + ['--quiet', '--overwrite', '--out', str(out)]
     return argv + ['--dry-run', '--quiet', '--out', '/nonexistent-dry-run']
+
+
+def _in_repo(arg: str) -> str:
+    """Return an argument with its repository file (alone or after LABEL=) made absolute."""
+    label, sep, path = arg.rpartition('=')
+    return f'{label}{sep}{REPO / path}' if path.endswith('.yaml') and '/' in path else arg
 
 
 def convert(name: str, out: Path | None = None) -> dict:
@@ -191,6 +195,12 @@ def _trajectory(metrics: dict) -> dict:
             for name, f in (metrics or {}).get('forecast', {}).items()}
 
 
+def figures_of(found: dict) -> dict:
+    """Return what a whole diagnosis's result (or findings.json) is judged by: figures, terms."""
+    return {'trajectory': _trajectory(found['metrics']),
+            'terms': sorted(r['term'] for r in found['findings'])}
+
+
 def diagnosis_figures(name: str, dataset: Path, work: Path, whole: bool = False) -> dict:
     """
     Return a committed diagnosis's figures on ``dataset`` as today's code gives them.
@@ -210,9 +220,7 @@ def diagnosis_figures(name: str, dataset: Path, work: Path, whole: bool = False)
     found = json.loads((REPO / folder / 'findings.json').read_text())
     nominal_file = find_file(found['nominal_physics']['source'], beside=[REPO])
     if rerun or whole:
-        result = diagnose([dataset], nominal_file, work / f'{name}_diagnosis')
-        return {'trajectory': _trajectory(result['metrics']),
-                'terms': sorted(r['term'] for r in result['findings'])}
+        return figures_of(diagnose([dataset], nominal_file, work / f'{name}_diagnosis'))
     vessel = recordings_vessel([dataset])
     wanted = found['recordings']['held_out_runs']
     held = [r for r in load_recordings([dataset], vessel) if r.run_id in wanted]
@@ -229,12 +237,12 @@ def diagnosis_figures(name: str, dataset: Path, work: Path, whole: bool = False)
 def diagnosis_differences(name: str, now: dict) -> list[str]:
     """Return one line per held-out figure, order or named term that moved from the findings'."""
     found = json.loads((REPO / DIAGNOSES[name][1] / 'findings.json').read_text())
-    claimed = _trajectory(found['metrics'])
+    claimed = figures_of(found)
     out = []
     if 'held_out_runs' in now:
         return [f"{name} diagnosis: held-out runs {now['held_out_runs']}, the findings' "
                 f"{found['recordings']['held_out_runs']}"]
-    for model, figure in claimed.items():
+    for model, figure in claimed['trajectory'].items():
         got = now['trajectory'].get(model)
         if got is None or abs(got - figure) > DIAGNOSIS_TOLERANCE * abs(figure):
             out.append(f"{name} diagnosis: {model} physics held-out trajectory error {got}, "
@@ -243,9 +251,9 @@ def diagnosis_differences(name: str, now: dict) -> list[str]:
     if nominal is not None and augmented is not None and not augmented < nominal:
         out.append(f'{name} diagnosis: the augmented physics no longer forecasts the '
                    f'held-out runs better ({augmented:.4g} against {nominal:.4g} m)')
-    terms = sorted(r['term'] for r in found['findings'])
-    if 'terms' in now and now['terms'] != terms:
-        out.append(f"{name} diagnosis: names {now['terms']}, the findings' {terms}")
+    if 'terms' in now and now['terms'] != claimed['terms']:
+        out.append(f"{name} diagnosis: names {now['terms']}, the findings' "
+                   f"{claimed['terms']}")
     return out
 
 
@@ -271,10 +279,6 @@ def study_figures(name: str, dataset: Path, work: Path) -> dict:
     return {'exit': 0, 'rows': _seed0_rows(rows)}
 
 
-def _in_repo(arg: str) -> str:
-    """Return an argument with its repository path (alone or after LABEL=) made absolute."""
-    label, sep, path = arg.rpartition('=')
-    return f'{label}{sep}{REPO / path}' if path.startswith('docs/') else arg
 
 
 def _seed0_rows(rows: list[dict]) -> dict:

@@ -13,6 +13,7 @@ got faster by finding nothing does not count).
 
 import argparse
 import contextlib
+import json
 from pathlib import Path
 import sys
 import tempfile
@@ -36,8 +37,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args) -> dict:
     """Simulate the campaign, diagnose it; return both times, their ratio and the finding."""
-    import json
-
     from vessel_diagnosis import cli as diagnose
     from vessel_diagnosis.scenarios import simulate_scenario
 

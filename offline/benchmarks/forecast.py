@@ -25,6 +25,8 @@ import time
 
 import numpy as np
 
+from .node_rate import confine_dds, measure, simulator_cost
+
 REPO = Path(__file__).resolve().parents[2]
 GOALS = {'engine_p50_ms': '<= 10', 'speedup_vs_naive': '>= 20',
          'batch64_forecasts_per_s': '>= 1000', 'node_p99_ms': '<= 20',
@@ -122,8 +124,6 @@ def matmul_rate(size: int = 512, seconds: float = 1.0) -> float:
 def node_latency(model: Path, samples: int) -> dict:
     """Publish inputs to a predictor process; time state publish -> forecast received."""
     from vessel_bringup.processes import Children
-
-    from .node_rate import confine_dds
 
     confine_dds()
     # The predictor is stopped however this ends, SIGINT/SIGTERM/SIGHUP included.
@@ -267,8 +267,6 @@ def run(args) -> dict:
         result.update(node_latency(path, args.node_samples))
     if not args.skip_rate:
         from hybrid_predictor.node import default_model_path
-
-        from .node_rate import measure, simulator_cost
 
         rate_model = args.rate_model or default_model_path(args.rate_vehicle)
         result['rate'] = {

@@ -275,9 +275,7 @@ def _thrust_findings(findings):
 @pytest.mark.timeout(WHOLE_DIAGNOSIS_TIMEOUT_S)
 def test_real_flights_diagnosis_names_its_documented_terms(real):
     """docs/results/nanodrone/diagnosis/nominal, run again whole by its documented command."""
-    found = real(None)
-    now = {'trajectory': claims._trajectory(found['metrics']),
-           'terms': sorted(r['term'] for r in found['findings'])}
+    now = claims.figures_of(real(None))
     assert now['terms'] and now['trajectory']
     assert claims.diagnosis_differences('nanodrone', now) == []
 

@@ -68,8 +68,7 @@ def test_a_diagnosis_whose_figures_or_terms_move_is_named():
     """The findings are the claim: a figure 2 % off, a lost order or other terms fail."""
     found = json.loads((claims.REPO / claims.DIAGNOSES['kvlcc2_hsva'][1] /
                         'findings.json').read_text())
-    same = {'trajectory': claims._trajectory(found['metrics']),
-            'terms': sorted(r['term'] for r in found['findings'])}
+    same = claims.figures_of(found)
     assert claims.diagnosis_differences('kvlcc2_hsva', same) == []
     within = {**same, 'trajectory': {'nominal': same['trajectory']['nominal'] * 1.01,
                                      'augmented': same['trajectory']['augmented']}}

@@ -100,8 +100,9 @@ def probe(study: Path, label: str) -> list[dict]:
         def rmse(pred, windows=windows):
             return forecast_metrics(pred, windows.z_target, spec)['rmse']
 
-        for seed in protocol['seeds']:
-            model, _ = load_model(run_dir(study, label, fold, seed) / MODEL_FILE)
+        members = [load_model(run_dir(study, label, fold, seed) / MODEL_FILE)[0].eval()
+                   for seed in protocol['seeds']]
+        for seed, model in zip(protocol['seeds'], members, strict=True):
             fitted = correction_inputs(model, train)
             radius = np.quantile(distance(correction_inputs(model, val), fitted), QUANTILE)
             d = distance(correction_inputs(model, test), fitted)
@@ -113,8 +114,6 @@ def probe(study: Path, label: str) -> list[dict]:
                          'beyond_twice': float(np.mean(d > 2 * radius)),
                          'threshold': served, 'served': rmse(predict(model, windows)),
                          'tenth': tenth})
-        members = [load_model(run_dir(study, label, fold, seed) / MODEL_FILE)[0].eval()
-                   for seed in protocol['seeds']]
         validation = forecast_windows(val, protocol['window'], protocol['horizon'],
                                       max(1, protocol['horizon'] // 3), protocol['target'])
         radius = np.quantile(ensemble_forecast(members, validation)[1], QUANTILE, axis=0)
@@ -124,7 +123,7 @@ def probe(study: Path, label: str) -> list[dict]:
                      'spread_beyond': dict(zip(spec.state_names, beyond, strict=True)),
                      'served': rmse(pred)})
         rows.append({'fold': fold.index, 'forecasts': len(windows), 'seed': 'physics alone',
-                     'served': rmse(predict(PhysicsOnly(model.physical), windows))})
+                     'served': rmse(predict(PhysicsOnly(members[-1].physical), windows))})
         print(f'fold {fold.index} done', file=sys.stderr, flush=True)
     return rows
 
