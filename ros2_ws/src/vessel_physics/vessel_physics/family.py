@@ -34,6 +34,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 import dataclasses
 from dataclasses import dataclass, field
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -135,8 +136,8 @@ class Family(ABC):
         """Return M (n_dof x n_dof, SI) with M nu' = tau."""
 
     def inverse_mass_matrix_t(self, params: Any) -> np.ndarray:
-        """Return (M^-1)^T, so that ``tau @ result`` are the accelerations."""
-        return np.ascontiguousarray(np.linalg.inv(self.mass_matrix(params)).T)
+        """Return (M^-1)^T, so that ``tau @ result`` are the accelerations (read-only)."""
+        return _inverse_mass_matrix_t(self, params)
 
     def kinematic_rates(self, z):
         """Return the rates of the states after the velocities, (..., n_state - n_dof)."""
@@ -419,3 +420,12 @@ def unit_force(z, dof: int, n_dof: int):
 
 __all__ = ['ExtraTerm', 'Family', 'KINDS', 'Physics', 'SteadySpec', 'Term', 'VELOCITIES',
            'one_dof', 'term_registry', 'unit_force']
+
+
+@lru_cache(maxsize=64)
+def _inverse_mass_matrix_t(family: Family, params: Any) -> np.ndarray:
+    # Cached per parameter set: the simulator and the diagnosis ask at every RK4 stage,
+    # and inverting there was a twentieth of a diagnosis of the Otter.
+    inverse = np.ascontiguousarray(np.linalg.inv(family.mass_matrix(params)).T)
+    inverse.flags.writeable = False
+    return inverse

@@ -17,8 +17,6 @@ starts a multirotor at rest.
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
 
 from vessel_physics.arrays import namespace
@@ -108,12 +106,6 @@ def mass_matrix(params: MultirotorParams) -> np.ndarray:
     return out
 
 
-@lru_cache(maxsize=32)
-def inverse_mass_matrix_t(params: MultirotorParams) -> np.ndarray:
-    """Return (M^-1)^T, cached per parameter set (the simulator asks at every RK4 stage)."""
-    return np.ascontiguousarray(np.linalg.inv(mass_matrix(params)).T)
-
-
 class Multirotor(Family):
     """The multirotor's family (module docstring)."""
 
@@ -152,10 +144,6 @@ class Multirotor(Family):
     def mass_matrix(self, params):
         """Return diag(m, m, m, I)."""
         return mass_matrix(params)
-
-    def inverse_mass_matrix_t(self, params):
-        """Return (M^-1)^T, cached per parameter set."""
-        return inverse_mass_matrix_t(params)
 
     def kinematic_rates(self, z):
         """Return (phi', theta') (..., 2) from the body rates (Euler ZYX)."""

@@ -14,7 +14,6 @@ couplings m zG, m xG enter the sway, roll and yaw rows.
 from __future__ import annotations
 
 from dataclasses import asdict, fields
-from functools import lru_cache
 import re
 
 import numpy as np
@@ -127,12 +126,6 @@ def mass_matrix(params: PatrolParams) -> np.ndarray:
     ])
 
 
-@lru_cache(maxsize=32)
-def inverse_mass_matrix_t(params: PatrolParams) -> np.ndarray:
-    """Return (M^-1)^T, cached per parameter set, so that accel = tau @ result."""
-    return np.ascontiguousarray(np.linalg.inv(mass_matrix(params)).T)
-
-
 def parameter_unit(name: str) -> str:
     """Return the SI unit of a textbook coefficient name (e.g. Xauu -> 'N s^2 m^-2')."""
     if name in _MASS_UNITS:
@@ -194,10 +187,6 @@ class Patrol(Family):
     def mass_matrix(self, params):
         """Return the 4x4 mass matrix with added mass (module docstring)."""
         return mass_matrix(params)
-
-    def inverse_mass_matrix_t(self, params):
-        """Return (M^-1)^T, cached."""
-        return inverse_mass_matrix_t(params)
 
     def kinematic_rates(self, z):
         """Return phi' = p."""
