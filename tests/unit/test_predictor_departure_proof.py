@@ -3,7 +3,7 @@ Proof of the departure WARN: the simulator with a concealed effect switched on m
 
 The patrol boat's shipped scenario is simulated (vessel_physics) under its routine
 operator, and the predictor's own judgement is fed every measured sample, as the node
-feeds it: its skill tracker (``hybrid_predictor.node.live_skill`` with predictor.yaml's
+feeds it: its skill tracker (``hybrid_predictor.core.live_skill`` with predictor.yaml's
 defaults) behind ``hindsight``, which keeps a window every ``skill_forecast_period``
 seconds and, as each scored step matures, has the shipped model forecast it again with
 the controls and wind the operator applied up to that step (what the bands promise).
@@ -36,9 +36,10 @@ def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> li
     end), ``warn_s`` the seconds of WARN in total, ``scored`` the steps scored.
     """
     from hybrid_models.engine import Forecaster
-    from hybrid_predictor.hindsight import Hindsight, Remade, applied_future
-    from hybrid_predictor.node import default_model_path, live_skill
-    from hybrid_predictor.plans import track
+    from hybrid_predictor.core import live_skill, remade
+    from hybrid_predictor.hindsight import Hindsight
+    from hybrid_predictor.node import default_model_path
+    from vessel_physics import frames
     from vessel_physics.simulation.config import default_config_path, load_simulation
     from vessel_physics.simulation.simulator import Simulator
     from vessel_ros_bridge.parameters import load_specs, package_config
@@ -63,17 +64,16 @@ def departure_runs(effect: str | None, runs: int, hours: float, seed: int) -> li
 
         def remake(i, applied, z=z, c=c, pose=pose):
             """Return the forecast from the window ending at sample i, as the node re-makes it."""
-            hybrid = engine.forecast(z[i + 1 - window:i + 1], c[i + 1 - window:i + 1],
-                                     applied_future(applied, horizon)).hybrid
-            path = track(hybrid, tuple(pose[i]), spec)
-            lower, upper, radius = engine.bands.bounds(hybrid)
-            return Remade(hybrid[0], path.north[0], path.east[0], engine.bands.levels, lower[0],
-                          upper[0], radius)
+            return remade(engine, spec, horizon, z[i + 1 - window:i + 1],
+                          c[i + 1 - window:i + 1], tuple(pose[i]), applied)
 
         hindsight = Hindsight(live_skill(spec, horizon, p), remake)
         raised, affected, warn_s = None, (), 0.0
+        # Measured as the node scores them: FLU states, ENU positions.
+        flu = frames.states_frd_to_flu(z, spec.state_names)
+        east, north, _ = frames.position_ned_to_enu(pose[:, 0], pose[:, 1])
         for i in range(window, len(t)):
-            hindsight.add_measurement(t[i], z[i], pose[i, 0], pose[i, 1], c[i])
+            hindsight.add_measurement(t[i], flu[i], east[i], north[i], c[i])
             hindsight.keep(t[i], i)
             d = hindsight.skill.departure()
             warn_s += spec.dt * d.active

@@ -4,11 +4,11 @@ Re-forecast offline what the predictor node forecast live, and compare the two (
 A ``ReForecast`` keeps what a predictor was given -- the messages of its input topics
 (the vessel's topic map) and its ControlPlan messages -- and recomputes any of its
 published Forecast messages from them: the window the node assembles
-(``InputWindow.of_node``, the node's own parameters), the future controls it assumed
-(the plan the forecast names, ``plans.plan_rows``, or the latest controls held) and the
-same checkpoint's ``Forecaster``, through ``held_wind.forecast_holding_wind`` as the
-node. Messages may be rclpy's (a live client) or rosbags' (a recorded bag,
-``bag_re_forecast``): only their fields are read.
+(``InputWindow.of_node``, the node's own parameters), then the node's own forecast code
+(``forecasting``: the future controls it assumed, the plan the forecast names or the
+latest controls held, the same checkpoint's ``Forecaster`` with the wind held over the
+earth, the published frames): equal by construction. Messages may be rclpy's (a live
+client) or rosbags' (a recorded bag, ``bag_re_forecast``): only their fields are read.
 
 ``difference`` gives, for one forecast, the largest absolute difference live minus
 offline of every state (the message's units) and of the published track (m). Both run
@@ -33,19 +33,12 @@ from hybrid_models.engine import Forecaster
 from hybrid_predictor_interfaces.msg import Forecast
 from vessel_datasets.topic_map import TopicMap
 from vessel_datasets.topic_messages import channel_reader
-from vessel_physics import frames
 from vessel_ros_bridge.messages import seconds_from_stamp
 
-from .held_wind import forecast_holding_wind, holds_wind
+from .forecasting import Future, future_controls
+from .forecasting import forecast as forecast_made
 from .input_window import InputWindow
-from .plans import (
-    PlanLimits,
-    check_plan_message,
-    hold_latest,
-    plan_controls,
-    plan_rows,
-    track,
-)
+from .plans import PlanLimits, check_plan_message
 
 # Live minus offline, relative to each state's largest magnitude in the forecast (plus
 # 1e-3 so a state near zero is not judged on its rounding alone): float32 carries ~7
@@ -149,21 +142,22 @@ class ReForecast:
                 window.push(topic, times[k], rows[k])
         return window.assemble(now=newest, until=newest)
 
-    def future(self, forecast, result) -> tuple[np.ndarray, bool]:
-        """Return the future controls (1, H, n_control) ``forecast`` assumed, wind held."""
-        horizon, latest = int(forecast.horizon), result.controls[-1]
+    def future(self, forecast, result) -> Future:
+        """Return the future controls ``forecast`` assumed (``forecasting.future_controls``)."""
+        horizon = int(forecast.horizon)
         if str(forecast.controls_assumed) != Forecast.CONTROLS_PLAN:
-            return hold_latest(latest, horizon), holds_wind(self.spec, None)
+            return future_controls(self.spec, result, horizon)
         key = (seconds_from_stamp(forecast.plan_stamp), str(forecast.plan_id))
         plan = self.plans.get(key)
         if plan is None:
             raise ReForecastError(f'the plan it followed (stamp {key[0]:.3f} s, id '
                                   f'{key[1]!r}) was not kept')
         matrix = check_plan_message(plan, horizon, self.limits, exact=False)
-        rows, why = plan_rows(matrix, key[0], result.t_end, self.spec.dt, horizon, math.inf)
-        if rows is None:
-            raise ReForecastError(f'its plan does not cover it: {why or "starts later"}')
-        return plan_controls(rows, latest)[None], holds_wind(self.spec, rows)
+        future = future_controls(self.spec, result, horizon, matrix, key[0])
+        if not future.follows_plan:
+            raise ReForecastError(f'its plan does not cover it: '
+                                  f'{future.why_not or "starts later"}')
+        return future
 
     def offline(self, forecast, arrival_slack: float = 0.0
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -191,13 +185,11 @@ class ReForecast:
         if not math.isclose(result.t_end, t_end, abs_tol=max(arrival_slack, 1e-6)):
             raise ReForecastError(f'the kept states end at {result.t_end:.3f} s, the '
                                   f'forecast at {t_end:.3f} s')
-        future, held = self.future(forecast, result)
-        hybrid = forecast_holding_wind(self.engine, result.states, result.controls, future,
-                                       [held])[0].hybrid
-        path = track(hybrid, result.pose, self.spec)
-        x, y, _ = frames.position_ned_to_enu(path.north[0], path.east[0])
-        z = np.zeros_like(x) if path.down is None else -path.down[0]
-        return frames.states_frd_to_flu(hybrid[0], self.spec.state_names), x, y, z
+        _, _, arrays = forecast_made(self.engine, self.spec, result,
+                                     [self.future(forecast, result)])
+        x, y = arrays.x[0], arrays.y[0]
+        z = np.zeros_like(x) if arrays.z is None else arrays.z[0]
+        return arrays.hybrid[0], x, y, z
 
     def difference(self, forecast, arrival_slack: float = 0.0) -> Difference:
         """Return live minus offline for one Forecast message (``Difference``)."""
