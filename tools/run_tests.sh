@@ -32,11 +32,11 @@ marker=()
 if [ "${1:-}" = "--slow" ]; then
   shift
   marker=(-m slow)
-  # The slow unit checks are a few long proofs in a few files: dealt out one test at a
-  # time, so that no core waits while the other runs a whole file of them. (Tests of one
-  # file that share a module's measurement then may each make it: pytest-xdist's
-  # loadgroup, which would keep them together, does nothing under pytest 9.)
-  dist=(--dist load)
+  # The slow unit checks are long proofs that share a file's measurement (a module
+  # fixture or cache): dealt out a file at a time, the largest first, each measurement is
+  # made once. (pytest-xdist's loadgroup, which would group tests across files, does
+  # nothing under pytest 9.)
+  dist=(--dist loadfile)
   longest=15
 else
   dist=(--dist loadfile --no-loadscope-reorder)
