@@ -61,7 +61,7 @@ def _launched(toy: Path, out: Path, count: int) -> float:
 
 def run(args) -> dict:
     """Train ``--trainings`` models each way; return the wall times and their ratio."""
-    from hybrid_models.toy import write_toy_dataset
+    from .toy import write_toy_dataset
 
     if args.trainings < 1:
         raise SystemExit('bench.py launch: error: --trainings must be at least 1')

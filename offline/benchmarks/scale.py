@@ -34,13 +34,14 @@ import time
 import numpy as np
 import torch
 
-from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
 from vessel_datasets import synthetic
 from vessel_datasets.format import read_dataset, write_dataset
 from vessel_datasets.pipeline import Options, convert_all
 from vessel_datasets.readers.bags import BagRecordings
 from vessel_datasets.topic_map import topic_map_for
 from vessel_description import load_vessel
+
+from .toy import TOY_VESSEL, write_toy_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'

@@ -9,7 +9,7 @@ import pytest
 from hybrid_models.checkpoint import load_model
 from hybrid_models.cli import crossval
 from hybrid_models.studies.crossval import Fold, ModelPlan, make_folds
-from hybrid_models.toy import write_toy_dataset
+from offline.benchmarks.toy import write_toy_dataset
 from vessel_datasets.format import DatasetError, read_dataset, resplit
 
 ROOT = Path(__file__).resolve().parents[2]

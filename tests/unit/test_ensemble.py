@@ -13,9 +13,9 @@ from hybrid_models.engine import Forecaster
 from hybrid_models.ensemble import EnsembleError, EnsembleHybrid, pack
 from hybrid_models.models import build_model, predict
 from hybrid_models.physical.identity import physics_identity
-from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
 from hybrid_models.training import load_config, train
 from hybrid_models.training.ensemble import serve_ensemble
+from offline.benchmarks.toy import TOY_VESSEL, write_toy_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'

@@ -9,7 +9,7 @@ import pytest
 
 from hybrid_models.physical import build_physical
 from hybrid_models.run_store import MIRROR_SUFFIX, build_split, mirror_rows
-from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
+from offline.benchmarks.toy import TOY_VESSEL, write_toy_dataset
 from vessel_datasets.format import read_dataset
 from vessel_description import VesselError, load_vessel, parse_vessel
 from vessel_physics.physics_file import load_physics

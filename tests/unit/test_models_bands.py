@@ -92,8 +92,8 @@ def test_training_writes_bands_that_the_engine_serves_and_set_bands_renews(tmp_p
     from hybrid_models.cli.set_bands import main as set_bands
     from hybrid_models.cli.set_threshold import main as set_threshold
     from hybrid_models.engine import Forecaster
-    from hybrid_models.toy import write_toy_dataset
     from hybrid_models.training import load_config, train
+    from offline.benchmarks.toy import write_toy_dataset
 
     toy = write_toy_dataset(tmp_path / 'toy', n_runs=6, n_samples=300)
     cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'])

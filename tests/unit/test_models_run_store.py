@@ -14,7 +14,7 @@ from hybrid_models.data import (
 )
 from hybrid_models.normalization import Normalizer
 from hybrid_models.streaming import Moments, RowSample
-from hybrid_models.toy import TOY_VESSEL, write_toy_dataset
+from offline.benchmarks.toy import TOY_VESSEL, write_toy_dataset
 from vessel_datasets.format import read_dataset
 
 FIELDS = ('z_window', 'c_window', 'c_future', 'z_target', 'run_index', 't0')

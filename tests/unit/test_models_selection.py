@@ -11,11 +11,11 @@ from hybrid_models.data import load_runs
 from hybrid_models.metrics import StepErrors, reported_steps
 from hybrid_models.models import build_model
 from hybrid_models.selection import choose_schedule, harms, threshold_grid
-from hybrid_models.toy import TOY_VESSEL, write_linear_dataset
 from hybrid_models.training import load_config, train
 from hybrid_models.training.loop import REFERENCE_EPOCH
 from hybrid_models.training.tasks import RecurrentTask
 from hybrid_models.training.train import select_threshold
+from offline.benchmarks.toy import TOY_VESSEL, write_linear_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'

@@ -7,7 +7,7 @@ import numpy as np
 from hybrid_models.data import load_runs
 from hybrid_models.physical.envelope import envelope_escapes, escape_warning
 from hybrid_models.physical.regression import RegressionModel
-from hybrid_models.toy import TOY_VESSEL, write_linear_dataset
+from offline.benchmarks.toy import TOY_VESSEL, write_linear_dataset
 
 
 def fitted(tmp_path):

@@ -9,7 +9,7 @@ import pytest
 
 from hybrid_models.cli import crossval
 from hybrid_models.cli.set_bands import main as set_bands
-from hybrid_models.toy import write_toy_dataset
+from offline.benchmarks.toy import write_toy_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'

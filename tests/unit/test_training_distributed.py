@@ -15,11 +15,11 @@ from safetensors.torch import load_file
 import torch
 
 from hybrid_models.checkpoint import CheckpointError, read_header
-from hybrid_models.toy import write_toy_dataset
 from hybrid_models.training import load_config, train
 from hybrid_models.training.config import fill_from_vessel
 from hybrid_models.training.distributed import DeviceError, Group, Shard, resolve_device
 from hybrid_models.training.train import _train, dataset_vessel
+from offline.benchmarks.toy import write_toy_dataset
 from vessel_datasets.format import read_dataset
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -9,9 +9,9 @@ import time
 
 from safetensors.numpy import load_file
 
-from hybrid_models.toy import write_toy_dataset
 from hybrid_models.training import load_config, train
 from hybrid_models.training.jobs import launcher, train_job
+from offline.benchmarks.toy import write_toy_dataset
 from tests.processes import gone_within
 
 ROOT = Path(__file__).resolve().parents[2]

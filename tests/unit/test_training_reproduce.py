@@ -5,7 +5,7 @@ import json
 import pytest
 
 from hybrid_models.cli import reproduce_table2
-from hybrid_models.toy import write_toy_dataset
+from offline.benchmarks.toy import write_toy_dataset
 
 
 @pytest.mark.slow

@@ -9,9 +9,9 @@ import pytest
 from safetensors.torch import load_file
 
 from hybrid_models.checkpoint import CheckpointError, read_header
-from hybrid_models.toy import write_toy_dataset
 from hybrid_models.training import load_config, train
 from hybrid_models.training.jobs import launcher
+from offline.benchmarks.toy import write_toy_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'

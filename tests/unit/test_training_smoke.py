@@ -7,8 +7,8 @@ import pytest
 
 from hybrid_models.checkpoint import load_model
 from hybrid_models.nets import HybridModel
-from hybrid_models.toy import write_toy_dataset
 from hybrid_models.training import load_config, train
+from offline.benchmarks.toy import write_toy_dataset
 
 ROOT = Path(__file__).resolve().parents[2]
 SMOKE = ROOT / 'ros2_ws' / 'src' / 'hybrid_models' / 'config' / 'smoke.yaml'

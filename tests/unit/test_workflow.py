@@ -3,7 +3,7 @@
 import json
 from pathlib import Path
 
-from hybrid_models.toy import write_toy_dataset
+from offline.benchmarks.toy import write_toy_dataset
 from vessel_datasets.format import read_dataset
 from vessel_diagnosis import cli_workflow
 from vessel_diagnosis.workflow import AUGMENTED, LSTM, NOMINAL, augmented_physics_file

@@ -1,5 +1,5 @@
 """
-A tiny synthetic vessel-like dataset for tests and smoke runs (not a ship model).
+A tiny synthetic vessel-like dataset for tests and benchmarks (not a ship model; not shipped).
 
 Five states and six controls with the ship's names and roughly its magnitudes: surge
 follows shaft speed, the rudders turn and sway the hull, roll is a lightly damped
@@ -89,7 +89,7 @@ def write_toy_dataset(out_dir: str | Path, n_runs: int = 10, n_samples: int = 60
     rng = np.random.default_rng(seed)
     runs = {f'toy_{i:03d}': simulate_toy_run(rng, n_samples) for i in range(n_runs)}
     write_dataset(out_dir, runs, vessel=TOY_VESSEL, seed=seed,
-                  provenance={'tool': 'hybrid_models.toy', 'seed': seed})
+                  provenance={'tool': 'offline.benchmarks.toy', 'seed': seed})
     return Path(out_dir)
 
 
@@ -114,5 +114,5 @@ def write_linear_dataset(out_dir: str | Path, n_runs: int = 8, n_samples: int = 
         table.update({name: c[:, j] for j, name in enumerate(TOY_VESSEL.control_names)})
         runs[f'linear_{i:03d}'] = pd.DataFrame(table)
     write_dataset(out_dir, runs, vessel=TOY_VESSEL, seed=seed,
-                  provenance={'tool': 'hybrid_models.toy.write_linear_dataset', 'seed': seed})
+                  provenance={'tool': 'offline.benchmarks.toy.write_linear_dataset', 'seed': seed})
     return Path(out_dir)
