@@ -19,10 +19,24 @@ from vessel_diagnosis.pipeline import name_missing_physics
 from vessel_diagnosis.recordings import load_recordings
 from vessel_diagnosis.scenarios import load_scenario, load_scenario_file, simulate_scenario
 from vessel_diagnosis.settings import load_settings
+from vessel_physics.families import FAMILIES
 
 RUNS = 6
 SECONDS = {'kvlcc2_hsva': 120.0, 'otter': 200.0}
 EFFECTS = load_scenario_file()['effects']
+
+
+@pytest.mark.parametrize('name', sorted(FAMILIES))
+def test_every_family_brings_its_candidate_library_in_its_own_folder(name):
+    family = FAMILIES[name]
+    folder = family.diagnosis_candidates.parent
+    assert (folder / 'family.py').is_file() and folder.name == name
+    library = load_library(None, family)
+    assert library.family == name and library.candidates
+    # a candidate names a term or a parameter of this family, never another's
+    for c in library.candidates:
+        assert c.kind == 'current' or c.target in family.terms or \
+            c.target in family.parameter_names(), c
 
 
 @pytest.fixture(scope='module')

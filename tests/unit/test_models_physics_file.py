@@ -94,3 +94,16 @@ def test_compiled_engine_runs_the_physics_file(tmp_path):
     got = Forecaster.from_model(model, dtype=np.float64).forecast(z, c, future)
     np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)
     np.testing.assert_allclose(got.physics, expected_phys, rtol=1e-9, atol=1e-11)
+
+
+@pytest.mark.parametrize('vessel', ['otter', 'kvlcc2_hsva', 'crazyflie_brushless', 'patrol_boat'])
+def test_every_familys_name_is_the_kind_of_its_model_and_refuses_another_familys(vessel):
+    spec = load_vessel(vessel)
+    physics = load_physics(spec.physics, spec)
+    family = physics.family
+    model = build_physical({'kind': family.name, 'substeps': 1}, spec)
+    assert model.physics.terms == tuple(family.model_terms)
+    other = next(name for name in ('mmg', 'fossen') if name != family.name)
+    with pytest.raises(ValueError, match=f'not the {other} family') as info:
+        build_physical({'kind': other}, spec)
+    assert '\n' not in str(info.value)

@@ -13,7 +13,6 @@ setup(
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),
         ('share/' + PACKAGE + '/config', glob('config/*.yaml')),
-        ('share/' + PACKAGE + '/config/library', glob('config/library/*.yaml')),
         ('share/' + PACKAGE + '/config/families', glob('config/families/*.yaml')),
     ],
     install_requires=['setuptools', 'numpy', 'scipy', 'pandas', 'pyyaml', 'matplotlib',

@@ -9,8 +9,9 @@ setup(
     name=PACKAGE,
     version='0.1.0',
     packages=find_packages(exclude=['test']),
-    # Isherwood (1972) wind coefficient table, read at run time by the patrol's wind loads.
-    package_data={PACKAGE: ['patrol/data/*.csv']},
+    # Isherwood (1972) wind coefficient table, read at run time by the patrol's wind loads;
+    # each family's candidate library for the diagnosis.
+    package_data={PACKAGE: ['patrol/data/*.csv', '*/diagnosis_candidates.yaml']},
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + PACKAGE]),
         ('share/' + PACKAGE, ['package.xml']),

@@ -13,8 +13,8 @@ docs/diagnosis.md explains the method and the output.
 The nominal physics may be of any family (vessel_physics: the patrol boat's 4-DOF
 terms, the MMG standard model, the Fossen matrix model, the multirotor's rigid body);
 without --physics it is the one the vessel file names. Each family brings its candidate
-library (config/library/FAMILY.yaml) and its settings (config/families/FAMILY.yaml over
-config/diagnosis.yaml; --config overrides).
+library (vessel_physics/FAMILY/diagnosis_candidates.yaml) and its settings
+(config/families/FAMILY.yaml over config/diagnosis.yaml; --config overrides).
 
 Writes REPORT_DIR/report.md with PNG figures, REPORT_DIR/findings.json (every number;
 ``augmented_physics`` names the files written) and, when something was found and it

@@ -13,7 +13,8 @@ own term functions are reused, never copied):
 - ``current``: a steady ocean current per run (north, east), which the predictor turns
   into the offset between velocity over ground and through the water.
 
-Each family has its library (config/library/FAMILY.yaml documents the keys); a user's
+Each family has its library (``Family.diagnosis_candidates``: the family folder's
+diagnosis_candidates.yaml, whose comments document the keys); a user's
 library (``--library``) is checked against the family of the physics it is used with.
 """
 
@@ -28,7 +29,6 @@ import numpy as np
 
 from vessel_description.resources import read_yaml
 from vessel_diagnosis.predict import Variant
-from vessel_diagnosis.settings import config_dir
 from vessel_physics.errors import did_you_mean
 from vessel_physics.family import Family, Physics
 
@@ -217,14 +217,9 @@ def _candidate(item: Mapping, index: int, source: str, family: Family) -> Candid
                      requires)
 
 
-def library_path(family: str) -> Path:
-    """Path of a family's packaged library (config/library/FAMILY.yaml)."""
-    return config_dir() / 'library' / f'{family}.yaml'
-
-
 def load_library(path: str | Path | None, family: Family) -> Library:
     """Read a library YAML file of ``family`` (default: the family's packaged one)."""
-    path = Path(path) if path else library_path(family.name)
+    path = Path(path) if path else family.diagnosis_candidates
     data = read_yaml(path, LibraryError, 'the library') or {}
     items = data.get('candidates') if isinstance(data, Mapping) else None
     if not isinstance(items, list) or not items:

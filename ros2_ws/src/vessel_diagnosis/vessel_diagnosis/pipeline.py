@@ -9,7 +9,8 @@ terms, evaluates nominal and augmented physics on the held-out recordings, write
 augmented physics when it forecasts them better, and writes findings.json, report.md
 and the figures into ``out``. It returns the findings mapping; its ``status`` says what
 the CLI's exit code should be. A family's own settings (time scales, force floors) and
-library are packaged data (config/families/, config/library/); nothing else here
+library are packaged data (config/families/ here, the family folder's
+diagnosis_candidates.yaml); nothing else here
 differs between families.
 """
 

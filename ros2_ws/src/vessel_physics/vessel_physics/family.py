@@ -35,6 +35,8 @@ from collections.abc import Callable, Mapping, Sequence
 import dataclasses
 from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
+import sys
 from typing import Any
 
 import numpy as np
@@ -43,6 +45,8 @@ from vessel_physics.arrays import constant, namespace
 from vessel_physics.errors import ConfigError
 
 KINDS = ('force', 'candidate', 'feature')
+# A family's candidate library for the diagnosis, in its folder (vessel_diagnosis.library).
+CANDIDATES_FILE = 'diagnosis_candidates.yaml'
 VELOCITIES = ('water', 'ground')   # which body velocity a force term takes
 
 
@@ -109,6 +113,18 @@ class Family(ABC):
     @abstractmethod
     def parameter_values(self, params: Any) -> dict:
         """Return the parameters as a mapping that ``read_parameters`` reads back exactly."""
+
+    @property
+    def diagnosis_candidates(self) -> Path:
+        """Return the family's candidate library for the diagnosis (its folder's YAML)."""
+        # Beside the family's terms: a term and the line that lets the diagnosis try it
+        # are added in one folder (docs/extending.md).
+        return Path(sys.modules[type(self).__module__].__file__).parent / CANDIDATES_FILE
+
+    @property
+    def features(self) -> tuple[str, ...]:
+        """Return the names of the hull model's regressors (``feature`` terms), in order."""
+        return tuple(n for n, t in self.terms.items() if t.kind == 'feature')
 
     def parameter_names(self) -> tuple[str, ...]:
         """Return the names of the numeric parameters (candidates of the diagnosis)."""

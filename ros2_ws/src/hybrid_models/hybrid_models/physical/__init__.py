@@ -6,21 +6,17 @@ like the paper's names in lower case: 'min', 'pro', 'lin', 'hyd', 'qua', 'min+li
 Kind 'physics' is the first-principles model of a physics file (``physics: PATH``) of any
 family (``vessel_physics``): the patrol boat's, an MMG ship's, a Fossen small craft's, a
 multirotor's, or the augmented physics the diagnosis writes; 'physics+lin' etc. combine
-it too. The families' named term sets are kinds of their own -- 'min' and 'pro' of the
-patrol family (the paper's), 'minq' of the multirotor family (the paper's quadrotor) --
-and 'mmg' is the MMG family's model (optionally some of its ``terms``), each on the
-physics the vessel file names.
+it too. Each family's name is a kind of its own -- 'patrol', 'mmg', 'fossen',
+'multirotor': the family's model (optionally some of its force ``terms``) -- and so are
+its named term sets -- 'min' and 'pro' of the patrol family (the paper's), 'minq' of the
+multirotor family (the paper's quadrotor) --, each on the physics the vessel file names.
 """
 
 from __future__ import annotations
 
 from hybrid_models.physical.base import PhysicalModel
 from hybrid_models.physical.composite import CompositeModel
-from hybrid_models.physical.first_principles import (
-    FAMILY_KINDS,
-    PHYSICS_FILE_KIND,
-    build_first_principles,
-)
+from hybrid_models.physical.first_principles import PHYSICS_FILE_KIND, build_first_principles
 from hybrid_models.physical.regression import RegressionModel
 from vessel_description import Vessel
 from vessel_physics.families import FAMILIES
@@ -32,9 +28,9 @@ __all__ = ['PhysicalModel', 'CompositeModel', 'RegressionModel', 'build_physical
 
 
 def first_principles_kinds() -> tuple[str, ...]:
-    """Return the first-principles kinds: 'physics', the family kinds, the term sets."""
+    """Return the first-principles kinds: 'physics', the families' names, their term sets."""
     sets = sorted({name for family in FAMILIES.values() for name in family.term_sets})
-    return (PHYSICS_FILE_KIND, *FAMILY_KINDS, *sets)
+    return (PHYSICS_FILE_KIND, *FAMILIES, *sets)
 
 
 def build_physical(cfg: dict, spec: Vessel) -> PhysicalModel:
@@ -47,7 +43,7 @@ def build_physical(cfg: dict, spec: Vessel) -> PhysicalModel:
     fit); for first principles ``physics`` (kind
     'physics': a physics file's path; any kind: the mapping a checkpoint stores, with
     ``physics_source`` where it came from), ``params`` (a physics or parameter file,
-    default the one the vessel file names), ``terms`` (kind 'mmg': force terms),
+    default the one the vessel file names), ``terms`` (a family's kind: force terms),
     ``substeps`` (RK4 sub-steps per sample period) and, from older checkpoints, the
     parameter values ``vessel`` / ``mmg``.
     """

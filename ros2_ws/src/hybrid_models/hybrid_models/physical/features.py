@@ -8,9 +8,9 @@ controls or adding features cannot shift them (a defect of the authors' library)
 - ``lin``: controls and states (Baier et al. eq. "Lin": z' = Q c + P z + b).
 - ``qua``: ``lin`` plus the square of every control and state (the quadcopter "Qua").
 - ``hyd``: ``lin`` plus the nonlinear hull terms of Blanke & Christensen (1993) as
-  used for the patrol vessel by Perez, Ross & Fossen (2006): the ``feature`` terms of the
-  patrol family's registry (``vessel_physics.patrol.family``), in its ``FEATURE_ORDER``,
-  each with the generalized forces it enters.
+  used for the patrol vessel by Perez, Ross & Fossen (2006): the patrol family's
+  ``features`` (``Family.features``, its ``feature`` terms in order), each with the
+  generalized forces it enters, for any vessel with the ship's states.
 """
 
 from __future__ import annotations
@@ -21,15 +21,16 @@ import numpy as np
 
 from vessel_description import Vessel
 from vessel_physics.arrays import namespace
-from vessel_physics.patrol.family import FEATURE_ORDER, TERMS
+from vessel_physics.families import FAMILIES
 
 Term = Callable[[dict], object]   # state values by name -> one feature (an array)
 
 # The hull features in the order of the regression's columns (a checkpoint's weights
-# follow it), and which generalized forces each enters: the family's registry.
-BLANKE_TERMS: dict[str, Term] = {name: TERMS[name].fn for name in FEATURE_ORDER}
+# follow it), and which generalized forces each enters: the family's own.
+_HULL = FAMILIES['patrol']
+BLANKE_TERMS: dict[str, Term] = {name: _HULL.terms[name].fn for name in _HULL.features}
 DOF_TERMS: dict[str, tuple[str, ...]] = {
-    dof: tuple(n for n in FEATURE_ORDER if dof in TERMS[n].dofs) for dof in 'XYKN'}
+    dof: tuple(n for n in _HULL.features if dof in _HULL.terms[n].dofs) for dof in 'XYKN'}
 
 # Forces acting on each state over one sample period. 'diagonal' reads Blanke's
 # equations literally (one force per acceleration, phi' = p has none). 'coupled'

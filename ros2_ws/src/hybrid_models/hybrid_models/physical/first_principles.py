@@ -9,10 +9,12 @@ there, and stepped explicit Euler at dt = 1 s.
 
 - ``physics``: the physics file a config names (``model.physical.physics``: any family's
   physics or parameter file, e.g. the augmented physics ``offline/diagnose.py`` writes);
-- a named subset of the family's terms: the paper's Min and Pro of the patrol family
-  (``min``: rigid-body Coriolis and linearized restoring; ``pro``: Min plus the twin
-  rudder-propellers), and ``mmg`` (the MMG family, optionally ``terms``), on the physics
-  the vessel file names (``physics:``) or a given parameter file (``params``).
+- a named subset of the family's terms: a family's own name (``patrol``, ``mmg``,
+  ``fossen``, ``multirotor``: its model terms, or the force terms ``terms`` lists) or a
+  term set it names (the paper's Min and Pro of the patrol family, ``min``: rigid-body
+  Coriolis and linearized restoring, ``pro``: Min plus the twin rudder-propellers), on
+  the physics the vessel file names (``physics:``) or a given parameter file
+  (``params``). Every name comes from the family (``vessel_physics.families``).
 
 The checkpoint keeps the whole physics inline, so a model never needs the file again;
 checkpoints written before the families stored the parameter values under ``vessel``
@@ -31,7 +33,6 @@ from vessel_physics.family import Physics
 from vessel_physics.physics_file import load_physics, physics_from_dict, physics_to_dict
 
 PHYSICS_FILE_KIND = 'physics'
-FAMILY_KINDS = {'mmg': 'mmg'}   # kinds that name a family: the model is that family's
 HINT = 'use a regression physics (lin, hyd, qua) or a physics file of a family that fits'
 
 
@@ -81,8 +82,8 @@ def _stored(cfg: Mapping) -> Physics | None:
 def _subset(kind: str, physics: Physics, terms: Sequence[str] | None) -> Physics:
     """Return the physics restricted to a named set of its family's terms."""
     family = physics.family
-    if kind in FAMILY_KINDS:
-        if family.name != FAMILY_KINDS[kind]:
+    if kind in FAMILIES:     # a family's name: its model terms, or some of its forces
+        if family.name != kind:
             raise ValueError(f'{kind}: the physics ({physics.source}) is of the '
                              f'{family.title}, not the {kind} family; use kind physics')
         chosen = tuple(terms) if terms else family.model_terms
@@ -103,7 +104,7 @@ def build_first_principles(kind: str, spec: Vessel, cfg: Mapping,
     Build the model of ``kind`` for a vessel: 'physics' (a file), or a family's term set.
 
     ``cfg`` is the physical-model config (``build_physical``): ``physics`` (a path or a
-    stored mapping), ``params`` (a parameter file), ``terms`` (kind 'mmg'), or the
+    stored mapping), ``params`` (a parameter file), ``terms`` (a family's kind), or the
     values an older checkpoint stored.
     """
     stored = _stored(cfg)
