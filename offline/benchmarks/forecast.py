@@ -13,7 +13,9 @@ Forecast speed of the default model, all figures measured in one run.
 - start-up: the warm-up a starting predictor runs (every batch size compiled), in a
   new process with an empty compilation cache and in the next one that finds it filled;
 - rate: a vehicle at its own rate (the Crazyflie at 100 Hz, its shipped model), one
-  forecast per state message, idle and beside a busy core (``node_rate``).
+  forecast per state message, idle and beside a busy core (``node_rate``);
+- what-if: a planner's request of 1,000 plans x 100 steps answered by the predictor's
+  own code, stage by stage, without DDS (``what_if``).
 """
 
 from __future__ import annotations
@@ -26,13 +28,14 @@ import time
 import numpy as np
 
 from .node_rate import confine_dds, measure, simulator_cost
+from .what_if import what_if_stages
 
 REPO = Path(__file__).resolve().parents[2]
 GOALS = {'engine_p50_ms': '<= 10', 'speedup_vs_naive': '>= 20',
          'batch64_forecasts_per_s': '>= 1000', 'node_p99_ms': '<= 20',
          'start_up_speedup': '>= 3', 'rate_idle_p99_ms': '<= 10',
          'rate_idle_share_forecast_by_node': '>= 0.99',
-         'rate_simulator_cpu_ms_per_period': '<= 7'}
+         'rate_simulator_cpu_ms_per_period': '<= 7', 'what_if_answer_ms': '<= 100'}
 WARM_UP = """
 import sys, time
 from hybrid_models.engine import Forecaster
@@ -46,7 +49,7 @@ print(time.perf_counter() - started)
 # A run that takes seconds to minutes, for CI (`bench.py --quick forecast`): it shows the
 # suite still runs end to end; its figures say nothing of the full run's.
 QUICK = ('--repeats', '3', '--naive-repeats', '1', '--node-samples', '10',
-         '--rate-samples', '20')
+         '--rate-samples', '20', '--what-if-plans', '20')
 
 
 def add_arguments(parser) -> None:
@@ -68,6 +71,11 @@ def add_arguments(parser) -> None:
                         help='its checkpoint (default: the model shipped for it)')
     parser.add_argument('--rate-samples', type=int, default=1000,
                         help='states timed at its rate, idle and beside a busy core (1000)')
+    parser.add_argument('--what-if-plans', type=int, default=1000,
+                        help="plans in the what-if request timed in the predictor's code "
+                             '(1000; 0 leaves it out)')
+    parser.add_argument('--what-if-steps', type=int, default=100,
+                        help='steps of each what-if plan (100)')
     parser.add_argument('--skip-rate', action='store_true',
                         help="leave out the measurement at the vehicle's rate")
 
@@ -265,6 +273,9 @@ def run(args) -> dict:
     result.update(start_up(path, horizon))
     if not args.skip_node:
         result.update(node_latency(path, args.node_samples))
+    if args.what_if_plans:
+        result['what_if'] = what_if_stages(path, args.what_if_plans, args.what_if_steps)
+        result['what_if_answer_ms'] = result['what_if']['answer_ms']
     if not args.skip_rate:
         from hybrid_predictor.node import default_model_path
 

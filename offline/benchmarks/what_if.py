@@ -1,0 +1,104 @@
+"""
+A planner's what-if in the predictor's own code, stage by stage (no DDS): many plans at once.
+
+A ``PredictorCore`` of the model is fed a simulated run of its vessel (actuators held
+mid-range) as its input callbacks would be, then asked ``what_if`` for ``plans`` plans of
+``steps`` steps, each actuator drawn at random each step within a tenth of its range
+of the mid-range it was held at (a planner's candidates about its operating point;
+over the whole range, per-second draws make the default model's forecasts diverge for
+four plans in ten, which the predictor withholds, refusing the request)
+(the request a sampling planner sends: 1,000 plans x 100 steps). Timed, median of
+``repeats``: the whole answer (plan checks, the forecast with the wind held over the
+earth, the published frames and bands, the Forecast messages) and its stages, with the
+engine's single pass over the batch as the compute alone. What DDS adds on top (the
+request's and the answer's bytes) is the soak's to measure.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+SECONDS = 80   # simulated samples fed: a full window and some
+
+
+def _median_ms(fn, repeats: int) -> float:
+    times = []
+    for _ in range(repeats):
+        started = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - started)
+    return round(1e3 * float(np.median(times)), 1)
+
+
+def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
+    """Return the what-if's figures for ``plans`` plans of ``steps`` steps (ms, medians)."""
+    from hybrid_models.engine import Forecaster
+    from hybrid_predictor.core import PredictorCore
+    from hybrid_predictor.forecast_messages import followed, forecast_messages
+    from hybrid_predictor.forecasting import Future, forecast
+    from hybrid_predictor.held_wind import holds_wind
+    from hybrid_predictor.plan_message import control_plan
+    from hybrid_predictor.plans import check_plan_message, plan_controls
+    from hybrid_predictor.re_forecast import predictor_defaults
+    from vessel_datasets.topic_map import topic_map_for
+    from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
+    from vessel_physics.simulation.config import load_simulation
+    from vessel_physics.simulation.simulator import Simulator
+    from vessel_ros_bridge import messages as m
+
+    engine = Forecaster.from_checkpoint(model)
+    vessel = engine.spec
+    topic_map = topic_map_for(vessel)
+    p = dict(predictor_defaults(), horizon=steps, max_plans=max(plans, 1))
+    core = PredictorCore(engine, vessel, topic_map, p, {t: t for t in topic_map.topics},
+                         sim_time=False)
+    writer = MessageWriter(topic_map, m.message_types(topic_map), 'odom', 'base_link')
+    readers = {t: channel_reader(topic_map, t) for t in topic_map.topics}
+    sim = Simulator(load_simulation(vessel=vessel.name), n_runs=1, seed=3)
+    actuators = [vessel.actuator(a) for a in vessel.actuator_names]
+    held = {a: 0.5 * (x.low + x.high) for a, x in zip(vessel.actuator_names, actuators,
+                                                       strict=True)}
+    sample = sim.sample()
+    for _ in range(SECONDS):
+        values = {k: float(v[0]) for k, v in sample.items()}
+        channels = channel_values(values, topic_map)
+        for topic in writer.topics:
+            msg = writer.message(topic, channels, m.stamp_from_seconds(values['t']))
+            core.push(topic, values['t'], readers[topic](msg), values['t'], 'odom',
+                      time.monotonic())
+        sample = sim.advance(held)
+    now = values['t']
+    rng = np.random.default_rng(0)
+    spread = {a: 0.1 * (x.high - x.low) for a, x in zip(vessel.actuator_names, actuators,
+                                                          strict=True)}
+    requests = [control_plan(vessel, np.column_stack([
+        rng.uniform(held[a] - spread[a], held[a] + spread[a], steps)
+        for a in vessel.actuator_names])) for _ in range(plans)]
+    engine.warm_up(steps, window=engine.window, max_batch=plans)
+    with core.lock:
+        result = core.assemble(now)
+    matrices = [check_plan_message(r, steps, core.limits, index=i)
+                for i, r in enumerate(requests)]
+    futures = [Future(plan_controls(x, result.controls[-1])[None], holds_wind(vessel, x),
+                      True) for x in matrices]
+    batch = np.concatenate([f.controls for f in futures])
+    ok, why, _ = core.what_if(requests, 0.0, now)
+    if not ok:
+        raise RuntimeError(f'what-if refused: {why}')
+    _, _, arrays = forecast(engine, vessel, result, futures)
+    return {
+        'plans': plans, 'steps': steps, 'model': engine.model_id,
+        'answer_ms': _median_ms(lambda: core.what_if(requests, 0.0, now), repeats),
+        'stages_ms': {
+            'plan checks': _median_ms(lambda: [check_plan_message(r, steps, core.limits)
+                                               for r in requests], repeats),
+            'forecast, wind held over the earth, frames and bands':
+                _median_ms(lambda: forecast(engine, vessel, result, futures), repeats),
+            'Forecast messages': _median_ms(lambda: forecast_messages(
+                core.served, result.t_end, arrays, [followed(r) for r in requests]), repeats),
+        },
+        'engine_one_pass_ms': _median_ms(
+            lambda: engine.forecast(result.states, result.controls, batch), repeats),
+    }
