@@ -84,12 +84,13 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
     futures = [Future(plan_controls(x, result.controls[-1])[None], holds_wind(vessel, x),
                       True) for x in matrices]
     batch = np.concatenate([f.controls for f in futures])
-    ok, why, _ = core.what_if(requests, 0.0, now)
+    ok, why, _, withheld = core.what_if(requests, 0.0, now)
     if not ok:
         raise RuntimeError(f'what-if refused: {why}')
     _, _, arrays = forecast(engine, vessel, result, futures)
     return {
         'plans': plans, 'steps': steps, 'model': engine.model_id,
+        'plans_withheld': sum(bool(w) for w in withheld),
         'answer_ms': _median_ms(lambda: core.what_if(requests, 0.0, now), repeats),
         'stages_ms': {
             'plan checks': _median_ms(lambda: [check_plan_message(r, steps, core.limits)

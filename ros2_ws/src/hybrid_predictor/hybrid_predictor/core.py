@@ -35,7 +35,7 @@ from vessel_datasets.topic_map import TopicMap
 from vessel_physics import frames
 from vessel_ros_bridge.messages import seconds_from_stamp
 
-from .forecast_messages import Assumed, Served, followed, forecast_messages
+from .forecast_messages import Assumed, Served, followed, forecast_messages, no_steps
 from .forecasting import Future, forecast, future_controls, published
 from .health import OK, WARN, Health
 from .held_wind import holds_wind
@@ -408,35 +408,47 @@ class PredictorCore:
                       result.pose, applied)
 
     # ------------------------------------------------------------------ what if
-    def what_if(self, plans, answer_period: float, now: float) -> tuple[bool, str, list]:
-        """Return (success, message, Forecast messages) for a Predict request's plans."""
+    def what_if(self, plans, answer_period: float, now: float
+                ) -> tuple[bool, str, list, list[str]]:
+        """
+        Return (success, message, Forecast messages, withheld) for a Predict request.
+
+        ``withheld`` gives per plan why its forecast was withheld ('' if served); such a
+        plan's Forecast carries no steps, and the others are answered all the same.
+        """
         if not 1 <= len(plans) <= self.p['max_plans']:
-            return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', []
+            return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', [], []
         try:   # every plan, as a whole, before any window or model work
             stride = answer_stride(answer_period, self.spec.dt, self.horizon)
             matrices = [check_plan_message(plan, self.horizon, self.limits, index=i)
                         for i, plan in enumerate(plans)]
         except PlanError as exc:
-            return False, str(exc), []
+            return False, str(exc), [], []
         with self.lock:
             result = self.assemble(now)
         if not result.ready:
-            return False, f'no forecast: {result.reason}', []
+            return False, f'no forecast: {result.reason}', [], []
         latest = result.controls[-1]
         futures = [Future(plan_controls(m, latest)[None], holds_wind(self.spec, m), True)
                    for m in matrices]
         with self.batch_lock:
             hybrid, _, arrays = forecast(self.engine, self.spec, result, futures, stride)
-        for i in range(len(plans)):
-            # Every step's states are checked; a non-finite track between the answer's
-            # steps would carry on to its last step, which every answer holds.
-            problem = self.withheld(hybrid[i], arrays, i)
-            if problem:
-                return False, f'plan {i}: forecast withheld: {problem}', []
+        # Every step's states are checked; a non-finite track between the answer's steps
+        # would carry on to its last step, which every answer holds.
+        withheld = [self.withheld(hybrid[i], arrays, i) or '' for i in range(len(plans))]
         out = forecast_messages(self.served, result.t_end, arrays,
                                 [followed(plan) for plan in plans], stride)
-        return True, f'{len(plans)} forecasts from the window ending at ' \
-                     f'{result.t_end:.3f} s', out
+        for msg, why in zip(out, withheld, strict=True):
+            if why:
+                no_steps(msg)
+        count = sum(bool(why) for why in withheld)
+        first = next((f'plan {i}: forecast withheld: {why}'
+                      for i, why in enumerate(withheld) if why), '')
+        if count == len(plans):
+            return False, f'every forecast withheld; {first}', [], []
+        note = f' ({count} withheld; {first})' if count else ''
+        return True, f'{len(plans) - count} forecasts from the window ending at ' \
+                     f'{result.t_end:.3f} s{note}', out, withheld
 
     # ------------------------------------------------------------------ health
     def report(self, now: float, wall: float, clock_publishers: list[str] | None,

@@ -103,6 +103,14 @@ def forecast_messages(served: Served, t_end: float, forecasts: Published,
     return out
 
 
+def no_steps(msg: Forecast) -> None:
+    """Empty a withheld forecast's steps in place (horizon 0); its names and ids stay."""
+    msg.horizon = 0
+    for name in ('hybrid', 'physics', 'x', 'y', 'heading', 'z', 'band_lower', 'band_upper',
+                 'band_position_radius'):
+        setattr(msg, name, array('d'))
+
+
 def path_message(forecast: Forecast, stride: int) -> PathMsg:
     """Return the forecast's track as a Path: every ``stride``-th step and the last."""
     path = PathMsg()

@@ -315,13 +315,14 @@ class PredictorNode(Node):
     def _answer(self, token: int, request) -> None:
         response = Predict.Response()
         try:
-            response.success, response.message, response.forecasts = self.core.what_if(
-                request.plans, request.answer_period, self._now())
+            (response.success, response.message, response.forecasts,
+             response.withheld) = self.core.what_if(request.plans, request.answer_period,
+                                                    self._now())
         except Exception as exc:  # noqa: BLE001 - a request must never stop the node
             self.get_logger().error(f'~/predict failed: {exc!r}')
             response.success, response.message = False, f'internal error: {exc}'
         if not response.success:
-            response.forecasts = []
+            response.forecasts, response.withheld = [], []
             self.core.count('service_failed')
         try:
             self.door.answer(token, response)
