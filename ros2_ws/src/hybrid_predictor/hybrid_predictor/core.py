@@ -348,16 +348,14 @@ class PredictorCore:
         # From a sample whose actuators or wind had not arrived when the wait was over:
         # an offline re-forecast of the same messages (re_forecast) differs.
         self.count('forecasts_before_sample_complete', not job.synced)
-        result, future, assumed = job.result, None, Assumed()
-        if job.plan is not None:
-            plan, matrix = job.plan
-            future = future_controls(self.spec, result, self.horizon, matrix,
-                                     seconds_from_stamp(plan.header.stamp),
-                                     self.p['plan_timeout'])
-            assumed = followed(plan) if future.follows_plan else assumed
-        stale = future.why_not if future is not None else ''
-        if future is None or not future.follows_plan:
-            future = future_controls(self.spec, result, self.horizon)
+        result = job.result
+        plan, matrix, start = (None, None, 0.0) if job.plan is None else (
+            job.plan[0], job.plan[1], seconds_from_stamp(job.plan[0].header.stamp))
+        # Held latest controls where there is no plan or it does not cover the window.
+        future = future_controls(self.spec, result, self.horizon, matrix, start,
+                                 self.p['plan_timeout'])
+        assumed = followed(plan) if future.follows_plan else Assumed()
+        stale = future.why_not
         hybrid, physics, arrays = forecast(self.engine, self.spec, result, [future])
         problem = self.withheld(hybrid[0], arrays, 0)
         if problem:
