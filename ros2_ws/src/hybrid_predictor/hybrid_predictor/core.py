@@ -132,13 +132,12 @@ class PredictorCore:
     """A predictor's shared state and the work done on it (module docstring)."""
 
     def __init__(self, engine: Forecaster, spec, topic_map: TopicMap, p: dict,
-                 labels: dict[str, str], sim_time: bool, unbounded: str = ''):
+                 labels: dict[str, str], sim_time: bool):
         """
         Make the core of a predictor serving ``engine`` for vessel ``spec``.
 
         ``p``: the node's parameters (config/predictor.yaml); ``labels``: each input topic
-        as the node resolved it, for messages; ``unbounded``: why the model is served
-        unbounded unasked ('' otherwise).
+        as the node resolved it, for messages.
         """
         check_time_parameters(p)
         self.engine, self.spec, self.p = engine, spec, p
@@ -154,11 +153,16 @@ class PredictorCore:
                              bool(np.isfinite(residual_bound).all()),
                              tuple(engine.bands.levels) if engine.bands is not None else (),
                              engine.bands_note)
+        # Why the model is served unbounded without allow_unbounded ('' otherwise).
+        self.unbounded = '' if self.served.bounded or p['allow_unbounded'] else (
+            f'model {engine.model_id} is served unbounded (relative threshold '
+            f'{engine.relative_threshold}): the LSTM correction has no bound; set '
+            f'allow_unbounded:=true if that is meant, or a relative_threshold')
         self.health = Health(silence_error=self.silence_error(p), max_age=p['max_age'],
                              watchdog=p['watchdog_timeout'],
                              rejection_warn_fraction=p['rejection_warn_fraction'],
                              sim_time=sim_time, state_topic=labels[self.window.state_topic],
-                             unbounded=unbounded)
+                             unbounded=self.unbounded)
         self.schedule = ForecastSchedule(p['forecast_period'])
         self.skill = live_skill(spec, self.horizon, p)
         # The model is judged on forecasts re-made with the inputs then applied.

@@ -128,13 +128,8 @@ class PredictorNode(Node):
         self.resolved = {topic: self.resolve_topic_name(node_topic(topic))
                          for topic in self.topic_map.topics}
         self.plan_topic = self.resolve_topic_name(PLAN_TOPIC)
-        bounded = bool(np.isfinite(engine.step_bounds(p['horizon'] or self.spec.horizon)).all())
-        unbounded = '' if bounded or p['allow_unbounded'] else (
-            f'model {engine.model_id} is served unbounded (relative threshold '
-            f'{engine.relative_threshold}): the LSTM correction has no bound; set '
-            f'allow_unbounded:=true if that is meant, or a relative_threshold')
         self.core = PredictorCore(engine, self.spec, self.topic_map, p, self.resolved,
-                                  self.sim_time, unbounded)
+                                  self.sim_time)
         self._said: dict[str, float] = {}   # what was said last when (monotonic s)
         started = time.perf_counter()
         engine.warm_up(self.core.horizon, window=engine.window, max_batch=p['max_plans'])
@@ -148,8 +143,8 @@ class PredictorNode(Node):
             f'{self.core.horizon}, relative threshold {engine.relative_threshold}, bound '
             f'{np.round(engine.bound, 5).tolist()}; compiled in '
             f'{time.perf_counter() - started:.1f} s')
-        if unbounded:
-            self.get_logger().warning(unbounded)
+        if self.core.unbounded:
+            self.get_logger().warning(self.core.unbounded)
 
         self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
