@@ -106,16 +106,15 @@ def percentiles(seconds: list[float]) -> tuple[float, float]:
 
 
 def forecast_flops(model, window: int, horizon: int) -> float:
-    """Multiply-add FLOPs (2 per MAC) of the LSTMs and head for one forecast."""
-    def lstm(module, steps):
-        flops = 0
-        for k in range(module.num_layers):
-            n_in = getattr(module, f'weight_ih_l{k}').shape[1]
-            flops += 2 * 4 * module.hidden_size * (n_in + module.hidden_size)
-        return steps * flops
+    """Multiply-add FLOPs (2 per MAC) of the recurrent stacks and head for one forecast."""
+    from hybrid_models.recurrent import step_flops
+
+    def stack(module, steps):
+        return steps * step_flops(model.cell, module.input_size, module.hidden_size,
+                                  module.num_layers)
 
     head = 2 * model.head.in_features * model.head.out_features * horizon
-    return float(lstm(model.init, window) + lstm(model.lstm, horizon) + head)
+    return float(stack(model.init, window) + stack(model.lstm, horizon) + head)
 
 
 def matmul_rate(size: int = 512, seconds: float = 1.0) -> float:

@@ -12,6 +12,7 @@ import torch
 
 from hybrid_models.engine import Forecaster
 from hybrid_models.models import build_model
+from hybrid_models.recurrent import CELLS
 from vessel_description import load_vessel
 
 SHIP = load_vessel('patrol_boat')
@@ -19,14 +20,14 @@ SHIP = load_vessel('patrol_boat')
 W, H = 12, 40
 
 
-def make_model(physical, threshold, mode='tanh', seed=0):
+def make_model(physical, threshold, mode='tanh', seed=0, cell='lstm'):
     """Build a hybrid with plausible normalization (``physical``: a kind or a config)."""
     torch.manual_seed(seed)
     physical_cfg = physical if isinstance(physical, dict) else {'kind': physical,
                                                                  'substeps': 2}
     physical = physical_cfg['kind']
-    cfg = {'kind': 'hybrid', 'hidden': 16, 'layers': 2, 'dropout': 0.0, 'bound_mode': mode,
-           'physical': physical_cfg}
+    cfg = {'kind': 'hybrid', 'cell': cell, 'hidden': 16, 'layers': 2, 'dropout': 0.0,
+           'bound_mode': mode, 'physical': physical_cfg}
     model = build_model(cfg, SHIP)
     rng = np.random.default_rng(seed)
     with torch.no_grad():
@@ -145,6 +146,24 @@ def test_the_threshold_has_one_meaning():
     assert np.abs(wider.forecast(z, c, future).hybrid - got.physics).max() > 0
     with pytest.raises(ValueError, match='>= 0'):
         Forecaster.from_model(model, relative_threshold=-0.1)
+
+
+@pytest.mark.parametrize('cell', list(CELLS))
+def test_every_recurrent_cell_is_served_from_its_checkpoint_as_trained(tmp_path, cell):
+    from hybrid_models.checkpoint import save_checkpoint
+
+    # The cell travels in the checkpoint's description: a GRU read as an LSTM would fail.
+    model = make_model('pro+lin', threshold=0.15, cell=cell)
+    path = save_checkpoint(tmp_path / f'{cell}.safetensors', model, {
+        'model': model.describe(), 'vehicle': SHIP.to_dict()})
+    served = Forecaster.from_checkpoint(path, dtype=np.float64)
+    assert served.cell.name == cell
+    z, c, future = inputs(batch=3)
+    expected, expected_phys = torch_forecast(model, z, c, future, torch.float64)
+    got = served.forecast(z, c, future)
+    np.testing.assert_allclose(got.hybrid, expected, rtol=1e-9, atol=1e-11)
+    np.testing.assert_allclose(got.physics, expected_phys, rtol=1e-9, atol=1e-11)
+    assert np.abs(got.hybrid - got.physics).max() > 1e-6   # the correction is not nil
 
 
 def test_a_checkpoint_serves_the_threshold_written_into_it(tmp_path):

@@ -40,6 +40,7 @@ def test_smoke_hybrid_trains_both_phases_within_a_minute(toy, tmp_path):
                         'lr: 0.005}]'],
     ['model.relative_threshold=0.15', 'model.bound_in_training=true',
      'model.bound_mode=clamp'],
+    ['model.cell=gru', 'model.relative_threshold=0.15'],
 ])
 def test_other_kinds_train_and_evaluate(toy, tmp_path, overrides):
     cfg = load_config(SMOKE, [f'dataset={toy}', 'training.progress=false'] + overrides)
@@ -55,6 +56,14 @@ def test_other_kinds_train_and_evaluate(toy, tmp_path, overrides):
                  'trajectory_error_per_minute.png'):
         assert (out / name).stat().st_size > 0, name
     assert '| m |' in (out / 'table.md').read_text()
+
+
+def test_an_unknown_recurrent_cell_is_refused_in_one_line():
+    from hybrid_models.training.config import ConfigError
+
+    with pytest.raises(ConfigError, match=r"^model.cell: unknown recurrent cell 'rnn'; "
+                                          r"use one of lstm, gru$"):
+        load_config(SMOKE, ['model.cell=rnn'])
 
 
 def test_a_hybrid_starts_from_another_hybrids_recurrent_layers(toy, tmp_path):
@@ -83,6 +92,9 @@ def test_a_hybrid_starts_from_another_hybrids_recurrent_layers(toy, tmp_path):
     other = build_model({**cfg['model'], 'hidden': cfg['model']['hidden'] + 1}, first.spec)
     with pytest.raises(ValueError, match='is not a hybrid of this size'):
         warm_start(other, tmp_path / 'first' / 'model.safetensors')
+    gru = build_model({**cfg['model'], 'cell': 'gru'}, first.spec)
+    with pytest.raises(ValueError, match='has lstm cells, this model gru cells'):
+        warm_start(gru, tmp_path / 'first' / 'model.safetensors')
     lstm = build_model({**cfg['model'], 'kind': 'lstm'}, first.spec)
     with pytest.raises(ValueError, match='only a hybrid starts from another'):
         warm_start(lstm, tmp_path / 'first' / 'model.safetensors')

@@ -75,8 +75,8 @@ def ensemble_forecast(members: list, windows) -> tuple[np.ndarray, np.ndarray]:
         z_phy = members[0].physical(z, c_future[:, k])
         corrections = []
         for i, m in enumerate(members):
-            res, recurrent[i] = correction(weights[i], z_phy, c_future[:, k], recurrent[i],
-                                           m.bound_mode)
+            res, recurrent[i] = correction(m.cell, weights[i], z_phy, c_future[:, k],
+                                           recurrent[i], m.bound_mode)
             corrections.append(res)
         corrections = torch.stack(corrections)
         spreads.append((corrections.std(0, unbiased=False) / members[0].residual_std).numpy())

@@ -98,7 +98,7 @@ class EnsembleHybrid(nn.Module, ServedThreshold):
         zs, phys, ress = [], [], []
         for k in range(c_future.shape[1]):
             z, z_phy, res, recurrents = ensemble_step(
-                weights, self.physical, z, c_future[:, k], recurrents, mode,
+                self.members[0].cell, weights, self.physical, z, c_future[:, k], recurrents, mode,
                 None if bounds is None else bounds[k])
             zs.append(z)
             phys.append(z_phy)

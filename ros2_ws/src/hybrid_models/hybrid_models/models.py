@@ -22,16 +22,17 @@ def build_model(cfg: dict, spec: Vessel) -> nn.Module:
     kind = cfg.get('kind')
     if kind == 'qlag':
         return QLag(spec, lag=int(cfg.get('lag', 4)), ridge=float(cfg.get('ridge', 1e-8)))
+    # Checkpoints older than the key 'cell' were LSTMs.
     if kind == 'lstm':
         return LSTMBaseline(spec, int(cfg.get('hidden', 64)), int(cfg.get('layers', 2)),
-                            float(cfg.get('dropout', 0.25)))
+                            float(cfg.get('dropout', 0.25)), cfg.get('cell', 'lstm'))
     if kind == 'hybrid':
         model = HybridModel(spec, build_physical(cfg['physical'], spec),
                             int(cfg.get('hidden', 64)), int(cfg.get('layers', 2)),
                             float(cfg.get('dropout', 0.25)), cfg.get('bound_mode', 'tanh'),
                             bool(cfg.get('bound_in_training', False)),
                             # Checkpoints older than the key were trained from torch's init.
-                            cfg.get('correction_init', 'random'))
+                            cfg.get('correction_init', 'random'), cfg.get('cell', 'lstm'))
         model.relative_threshold = cfg.get('relative_threshold')
         return model
     if kind == ENSEMBLE:

@@ -1,12 +1,14 @@
 """
 Recurrent forecasters: the LSTM baseline and the hybrid residual model.
 
-Both use ``torch.nn.LSTM`` (gate order i, f, g, o; ``batch_first``) and an
-initializer LSTM after Mohajerin & Waslander (2019): it reads the initialization
-window of normalized states and controls, and its final (h, c) of every layer is the
-predictor LSTM's initial state (same layers and hidden size, so no mapping is needed).
-The hybrid's fed-back steps run ``hybrid_models.hybrid_step`` on the same weights, the
-one step the compiled forecaster serves; teacher forcing keeps the fused LSTM call.
+Both are stacks of one recurrent cell (``hybrid_models.recurrent``: the paper's LSTM by
+default, or a GRU), trained by torch's fused module, with an initializer stack after
+Mohajerin & Waslander (2019): it reads the initialization window of normalized states
+and controls, and its final state of every layer is the predictor stack's initial state
+(same cell, layers and hidden size, so no mapping is needed). The hybrid's fed-back
+steps run ``hybrid_models.hybrid_step`` on the same weights, the one step the compiled
+forecaster serves; teacher forcing keeps the fused call. The predictor stack is the
+module ``lstm`` whatever its cell, so that checkpoints keep the paper's names.
 
 Normalization (buffers, fitted on training data): x_n = (x - mean) / std for states
 and controls; the network's output y becomes a state (LSTM) or a residual (hybrid) as
@@ -36,6 +38,7 @@ from hybrid_models.compiled_physics import CompiledStep, compile_step
 from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weights
 from hybrid_models.normalization import Normalizer
 from hybrid_models.physical import PhysicalModel
+from hybrid_models.recurrent import cell_of, from_torch, torch_stack
 from vessel_description import Vessel
 
 CORRECTION_INITS = ('zero', 'random')
@@ -65,10 +68,10 @@ class _Normalized(nn.Module):
         """Normalize a control."""
         return (c - self.control_mean) / self.control_std
 
-    def initial_state(self, init: nn.LSTM, z_window: torch.Tensor, c_window: torch.Tensor):
-        """(h, c) of the initializer after the window, each (layers, B, hidden)."""
-        _, hc = init(torch.cat([self.nz(z_window), self.nc(c_window)], dim=-1))
-        return hc
+    def initial_state(self, init: nn.Module, z_window: torch.Tensor, c_window: torch.Tensor):
+        """Return the initializer's final state after the window (torch's form)."""
+        _, final = init(torch.cat([self.nz(z_window), self.nc(c_window)], dim=-1))
+        return final
 
 
 class PhysicalModule(nn.Module):
@@ -131,15 +134,9 @@ class PhysicalModule(nn.Module):
         return self.model.describe()
 
 
-def _lstm(n_in: int, hidden: int, layers: int, dropout: float) -> nn.LSTM:
-    # nn.LSTM only applies dropout between stacked layers.
-    return nn.LSTM(n_in, hidden, layers, batch_first=True,
-                   dropout=dropout if layers > 1 else 0.0)
-
-
 class LSTMBaseline(_Normalized):
     """
-    Stacked LSTM with an LSTM initializer (Mohajerin & Waslander 2019).
+    Stacked LSTM (or ``cell``) with an initializer (Mohajerin & Waslander 2019).
 
     The predictor sees only the controls; its output is the normalized state.
     """
@@ -147,31 +144,32 @@ class LSTMBaseline(_Normalized):
     kind = 'lstm'
 
     def __init__(self, spec: Vessel, hidden: int = 64, layers: int = 2,
-                 dropout: float = 0.25):
+                 dropout: float = 0.25, cell: str = 'lstm'):
         super().__init__(spec)
         self.hidden, self.layers, self.dropout = hidden, layers, dropout
-        self.init = _lstm(spec.n_state + spec.n_control, hidden, layers, dropout)
-        self.lstm = _lstm(spec.n_control, hidden, layers, dropout)
+        self.cell = cell_of(cell)
+        self.init = torch_stack(self.cell, spec.n_state + spec.n_control, hidden, layers,
+                                dropout)
+        self.lstm = torch_stack(self.cell, spec.n_control, hidden, layers, dropout)
         self.head = nn.Linear(hidden, spec.n_state)
 
     def forecast(self, z_window: torch.Tensor, c_window: torch.Tensor,
                  c_future: torch.Tensor) -> torch.Tensor:
-        """States over the horizon; no feedback, so one fused LSTM call."""
-        hc = self.initial_state(self.init, z_window, c_window)
-        y, _ = self.lstm(self.nc(c_future), hc)
+        """States over the horizon; no feedback, so one fused call."""
+        y, _ = self.lstm(self.nc(c_future), self.initial_state(self.init, z_window, c_window))
         return self.head(y) * self.state_std + self.state_mean
 
     def describe(self) -> dict:
         """Architecture (``build_model`` input)."""
-        return {'kind': self.kind, 'hidden': self.hidden, 'layers': self.layers,
-                'dropout': self.dropout}
+        return {'kind': self.kind, 'cell': self.cell.name, 'hidden': self.hidden,
+                'layers': self.layers, 'dropout': self.dropout}
 
 
 class HybridModel(_Normalized, ServedThreshold):
     """
     Residual hybrid of Baier et al.: z_{t+1} = z_phy_{t+1} + bound(LSTM residual).
 
-    Per step: z_phy = physical(z_t, c_t); the predictor LSTM reads the normalized
+    Per step: z_phy = physical(z_t, c_t); the predictor stack reads the normalized
     (c_t, z_phy) and its linear head gives the residual; the residual is limited to
     [-b, b] per state (``hybrid_models.bound``) and added. During multistep
     prediction the sum is fed back as the next z_t.
@@ -185,7 +183,8 @@ class HybridModel(_Normalized, ServedThreshold):
 
     def __init__(self, spec: Vessel, physical: PhysicalModel, hidden: int = 64,
                  layers: int = 2, dropout: float = 0.25, bound_mode: str = 'tanh',
-                 bound_in_training: bool = False, correction_init: str = 'zero'):
+                 bound_in_training: bool = False, correction_init: str = 'zero',
+                 cell: str = 'lstm'):
         super().__init__(spec)
         if correction_init not in CORRECTION_INITS:
             raise ValueError(f'correction_init must be one of {CORRECTION_INITS}, got '
@@ -193,8 +192,11 @@ class HybridModel(_Normalized, ServedThreshold):
         self.physical = PhysicalModule(physical)
         self.hidden, self.layers, self.dropout = hidden, layers, dropout
         self.bound_mode, self.bound_in_training = bound_mode, bool(bound_in_training)
-        self.init = _lstm(spec.n_state + spec.n_control, hidden, layers, dropout)
-        self.lstm = _lstm(spec.n_control + spec.n_state, hidden, layers, dropout)
+        self.cell = cell_of(cell)
+        self.init = torch_stack(self.cell, spec.n_state + spec.n_control, hidden, layers,
+                                dropout)
+        self.lstm = torch_stack(self.cell, spec.n_control + spec.n_state, hidden, layers,
+                                dropout)
         self.head = nn.Linear(hidden, spec.n_state)
         self.correction_init = correction_init
         if correction_init == 'zero':
@@ -235,24 +237,24 @@ class HybridModel(_Normalized, ServedThreshold):
         return None if self.training and not self.bound_in_training else self.bound_mode
 
     def start(self, z_window: torch.Tensor, c_window: torch.Tensor) -> tuple:
-        """Return the predictor's recurrent state after the window: (h, c) per layer."""
-        h, c = self.initial_state(self.init, z_window, c_window)
-        return tuple(h.unbind(0)), tuple(c.unbind(0))
+        """Return the predictor's recurrent state after the window (``recurrent``'s form)."""
+        return from_torch(self.cell, self.initial_state(self.init, z_window, c_window))
 
     def step(self, z: torch.Tensor, c: torch.Tensor, recurrent: tuple,
              weights: dict | None = None, bound: torch.Tensor | None = None):
         """One sample period (``hybrid_models.hybrid_step``): (z_next, z_phy, res, state)."""
         weights = weights if weights is not None else self.step_weights()
-        return hybrid_step(weights, self.physical, z, c, recurrent, self._bound_mode(),
-                           self._between_layers(), bound)
+        return hybrid_step(self.cell, weights, self.physical, z, c, recurrent,
+                           self._bound_mode(), self._between_layers(), bound)
 
     def step_weights(self) -> dict:
         """Return the step's weights as views of the parameters (gradients flow)."""
-        return step_weights(dict(self.named_parameters()) | dict(self.named_buffers()),
+        return step_weights(self.cell,
+                            dict(self.named_parameters()) | dict(self.named_buffers()),
                             self.layers)
 
     def _between_layers(self):
-        # torch.nn.LSTM's dropout between stacked layers, which teacher forcing applies.
+        # The fused module's dropout between stacked layers, which teacher forcing applies.
         if not self.training or self.layers < 2 or self.lstm.dropout == 0:
             return None
         return lambda x: nn.functional.dropout(x, self.lstm.dropout, training=True)
@@ -290,16 +292,17 @@ class HybridModel(_Normalized, ServedThreshold):
         Residuals (B, L, n_state) given the physical one-step outputs from TRUE states.
 
         Phase 1 of the two-phase training: z_phy does not depend on the network, so
-        the whole sequence is one fused LSTM call.
+        the whole sequence is one fused call.
         """
-        hc = self.initial_state(self.init, z_window, c_window)
-        y, _ = self.lstm(torch.cat([self.nc(c_future), self.nz(z_phy)], dim=-1), hc)
+        y, _ = self.lstm(torch.cat([self.nc(c_future), self.nz(z_phy)], dim=-1),
+                         self.initial_state(self.init, z_window, c_window))
         return bounded_residual(y, self.step_weights(), self._bound_mode())
 
     def describe(self) -> dict:
         """Architecture and constraint (``build_model`` input)."""
-        return {'kind': self.kind, 'hidden': self.hidden, 'layers': self.layers,
-                'dropout': self.dropout, 'physical': self.physical.describe(),
+        return {'kind': self.kind, 'cell': self.cell.name, 'hidden': self.hidden,
+                'layers': self.layers, 'dropout': self.dropout,
+                'physical': self.physical.describe(),
                 'bound_mode': self.bound_mode, 'bound_in_training': self.bound_in_training,
                 'correction_init': self.correction_init,
                 'relative_threshold': self.relative_threshold}

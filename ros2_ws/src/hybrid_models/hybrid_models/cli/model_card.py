@@ -139,13 +139,14 @@ def card_text(path: Path, config: dict, engine: Forecaster, metrics: dict,
         f'- **File**: `{path.name}` ({engine.model_id}), weights-only safetensors with a '
         'JSON config; loads without unpickling.',
         f'- **Model**: hybrid residual model (Baier et al.), physical part '
-        f'`{model.get("physical", {}).get("kind")}`, LSTM {model.get("layers")} x '
-        f'{model.get("hidden")} with an LSTM initializer over a {engine.window}-sample '
-        f'window; {config.get("parameters")} trained parameters'
+        f'`{model.get("physical", {}).get("kind")}`, {engine.cell.name.upper()} '
+        f'{model.get("layers")} x {model.get("hidden")} with an initializer of the same '
+        f'cells over a {engine.window}-sample window; {config.get("parameters")} trained '
+        'parameters'
         + (f'; an ensemble of {len(config["ensemble"]["seeds"])} such hybrids (seeds '
            f'{config["ensemble"]["seeds"]}) on this physics, each step adding the mean of '
            f'their bounded corrections.' if config.get('ensemble') else '.'),
-        f'- **Constraint**: LSTM correction bounded to ± relative threshold x the physical '
+        f'- **Constraint**: the correction bounded to ± relative threshold x the physical '
         f"model's 95 % output range / 2; the checkpoint serves threshold "
         f'{engine.relative_threshold}, which gives bounds '
         + ', '.join(f'{s} {b:.4g} {u}' for s, b, u in zip(states, engine.bound, units,

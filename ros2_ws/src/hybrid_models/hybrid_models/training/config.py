@@ -15,6 +15,7 @@ import yaml
 
 import hybrid_models
 from hybrid_models.data import evaluation_protocol
+from hybrid_models.recurrent import cell_of
 from vessel_description.resources import data_dir, read_yaml
 
 DEFAULTS: dict = {
@@ -26,6 +27,8 @@ DEFAULTS: dict = {
                                 # with one line when its vectors or rate differ)
     'model': {
         'kind': 'hybrid',       # qlag | lstm | hybrid
+        'cell': 'lstm',         # the recurrent cell of lstm and hybrid: lstm (the paper's)
+                                # or gru (hybrid_models.recurrent; docs/extending.md)
         'hidden': 64,
         'layers': 2,
         'dropout': 0.25,
@@ -148,6 +151,10 @@ def resolve(cfg: dict) -> dict:
     if out['model']['residual_scale'] not in RESIDUAL_SCALES:
         raise ConfigError(f"model.residual_scale must be one of {RESIDUAL_SCALES}, got "
                           f"{out['model']['residual_scale']!r}")
+    try:
+        cell_of(out['model']['cell'])
+    except ValueError as exc:
+        raise ConfigError(f'model.cell: {exc}') from None
     members = out['training']['members']
     if isinstance(members, bool) or not isinstance(members, int) or members < 1:
         raise ConfigError(f'training.members must be a whole number >= 1, got {members!r}')

@@ -138,12 +138,20 @@ def warm_start(model, path: Path) -> dict:
     Copy the recurrent layers of the hybrid checkpoint ``path`` into ``model``.
 
     Refused (ValueError, one line) unless ``model`` is a hybrid and the checkpoint holds
-    every such layer with the same shape. Return what was copied, for the checkpoint.
+    every such layer with the same cell and shape. Return what was copied, for the
+    checkpoint.
     """
     if not isinstance(model, HybridModel):
         raise ValueError(f'training.init_from: only a hybrid starts from another, not a '
                          f'{model.kind}')
-    source = load_checkpoint(path).model_state
+    checkpoint = load_checkpoint(path)
+    described = checkpoint.config.get('model') or {}
+    # Checkpoints older than the key 'cell' were LSTMs.
+    cell = described.get('member', described).get('cell', 'lstm')
+    if cell != model.cell.name:
+        raise ValueError(f'training.init_from: {path} has {cell} cells, this model '
+                         f'{model.cell.name} cells')
+    source = checkpoint.model_state
     own = model.state_dict()
     names = [n for n in own if n.startswith(WARM_START_LAYERS)]
     unfit = [n for n in names if n not in source or source[n].shape != own[n].shape]
