@@ -80,7 +80,7 @@ class GRU:
 
     @staticmethod
     def weights(w_ih, w_hh, b_ih, b_hh) -> tuple:
-        """Return one layer's step weights (the biases stay apart: r scales b_hn only)."""
+        """Return one layer's step weights, the biases apart: r scales b_hn only."""
         return w_ih.T, w_hh.T, b_ih, b_hh
 
     @staticmethod
