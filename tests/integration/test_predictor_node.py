@@ -75,8 +75,7 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
         launcher, ros_node, tmp_path):
     import torch
 
-    from hybrid_models.metrics import dead_reckoning
-    from hybrid_predictor.held_wind import turned_wind, wind_direction_columns
+    from hybrid_models.engine import wind_direction_columns
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_physics import frames
     from vessel_ros_bridge import messages as m
@@ -165,18 +164,24 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     model, _ = default_model()
     window = inputs.window_until(t_end, 60)
     assert window.ready, window.reason
-    def forecast(future):
-        with torch.no_grad():
-            return model.forecast(torch.as_tensor(window.states[None]),
-                                  torch.as_tensor(window.controls[None]),
-                                  torch.as_tensor(future))[0].numpy()
-
-    # The latest controls held, the wind over the earth: turned against the heading of a
-    # first forecast with it held at the bow (hybrid_predictor.held_wind), here in torch.
-    future = np.tile(window.controls[-1], (1, 900, 1))
-    _, heading = dead_reckoning(forecast(future), model.spec)
-    start = np.concatenate([[0.0], heading[:-1]])[None]
-    expected = forecast(turned_wind(future, start, wind_direction_columns(model.spec)))
+    # The latest controls held, the wind over the earth (hybrid_predictor.held_wind): at
+    # every step its first angle from the bow turned against the heading the forecast has
+    # reached, here stepped in torch (the node's engine does it inside its compiled pass).
+    i_cos, i_sin = wind_direction_columns(model.spec)
+    held = torch.as_tensor(np.tile(window.controls[-1], (1, 1)))
+    gamma0 = torch.atan2(held[:, i_sin], held[:, i_cos])
+    steps, psi = [], torch.zeros(1, dtype=held.dtype)
+    with torch.no_grad():
+        z = torch.as_tensor(window.states[None, -1])
+        recurrent = model.start(torch.as_tensor(window.states[None]),
+                                torch.as_tensor(window.controls[None]))
+        for _ in range(900):
+            c = held.clone()
+            c[:, i_cos], c[:, i_sin] = torch.cos(gamma0 - psi), torch.sin(gamma0 - psi)
+            z, _, _, recurrent = model.step(z, c, recurrent)
+            psi = psi + model.spec.dt * z[:, model.spec.state_index('r')]
+            steps.append(z[0].numpy())
+    expected = np.array(steps)
     scale = np.abs(expected).max(axis=0) + 1e-3
     frd = frames.states_flu_to_frd(hybrid, msg.state_names)
     assert np.max(np.abs(frd - expected) / scale) < 2e-3

@@ -1,13 +1,12 @@
 """hybrid_predictor.held_wind: a held wind stays put over the earth while the bow turns."""
 
-import math
 
 import numpy as np
 import pytest
 
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import dead_reckoning, trajectory_errors
-from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind, turned_wind
+from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind
 from hybrid_predictor.node import default_model_path
 from vessel_description import load_vessel
 from vessel_physics.simulation.config import load_simulation
@@ -16,15 +15,6 @@ from vessel_physics.simulation.simulator import Simulator
 
 BOAT = load_vessel('patrol_boat')
 COS, SIN = BOAT.control_index('wind_dir_cos'), BOAT.control_index('wind_dir_sin')
-
-
-def test_a_head_wind_comes_from_port_after_a_turn_to_starboard():
-    future = np.zeros((1, 3, BOAT.n_control))
-    future[..., COS] = 1.0                                  # from ahead
-    turned = turned_wind(future, np.array([[0.0, math.pi / 4, math.pi / 2]]), (COS, SIN))
-    np.testing.assert_allclose(turned[0, :, COS], [1.0, math.sqrt(0.5), 0.0], atol=1e-12)
-    # Positive towards starboard (docs/conventions.md): from port is negative.
-    np.testing.assert_allclose(turned[0, :, SIN], [0.0, -math.sqrt(0.5), -1.0], atol=1e-12)
 
 
 def test_which_plans_hold_the_wind():
@@ -47,12 +37,16 @@ def test_plans_with_their_own_wind_are_forecast_as_given(engine):
     future = np.tile(c[-1], (2, 120, 1))
     forecast, used = forecast_holding_wind(engine, z, c, future, [False, True])
     np.testing.assert_array_equal(used[0], future[0])
-    # The held plan's wind turned against the heading of its forecast at the bow's wind
-    # (a positive rudder turns the bow to port: the wind veers to starboard).
-    _, heading = dead_reckoning(engine.forecast(z, c, future[1:]).hybrid[0], BOAT)
+    # The held plan's wind turned against the heading its own forecast reaches, step by
+    # step in the one pass (a positive rudder turns the bow to port, psi falls: the wind
+    # from ahead veers to starboard, its angle from the bow positive; docs/conventions.md).
+    _, heading = dead_reckoning(forecast.hybrid[1], BOAT)
     np.testing.assert_allclose(np.arctan2(used[1, 1:, SIN], used[1, 1:, COS]),
-                               -heading[:-1], atol=1e-6)
-    assert heading[-1] < -0.5
+                               -heading[:-1], atol=1e-5)
+    assert used[1, 0, COS] == 1.0 and heading[-1] < -0.5
+    # Held at the bow, the same plan forecasts another turn: the held wind acted.
+    bow = engine.forecast(z, c, future[1:]).hybrid[0]
+    assert np.abs(bow - forecast.hybrid[1]).max() > 1e-3
     # Alone or in a batch of two: another compiled float32 program, equal to ~1e-7.
     np.testing.assert_allclose(forecast.hybrid[0], engine.forecast(z, c, future[:1]).hybrid[0],
                                rtol=1e-5, atol=1e-6)

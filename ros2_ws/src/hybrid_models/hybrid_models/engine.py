@@ -46,10 +46,12 @@ from hybrid_models.hybrid_step import (
     ENSEMBLE_KIND as ENSEMBLE,
 )
 from hybrid_models.hybrid_step import ensemble_step, step_weights
+from hybrid_models.metrics import heading_rate
 from hybrid_models.physical import PhysicalModel, build_physical
 from hybrid_models.physical.base import part
 from hybrid_models.recurrent import cell_of, layer_weights, map_state, stack_step, zeros
 from vessel_description import Vessel
+from vessel_description.vocabulary import ENVIRONMENT_DIRECTIONS
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,17 @@ class Forecast:
 
     hybrid: np.ndarray    # (B, H, n_state)
     physics: np.ndarray   # (B, H, n_state); hybrid - physics is the bounded correction
+    # (B, H, 2): the wind direction's (cos, sin) each step used, a held one turned
+    # (``Forecaster.forecast``'s ``hold_wind``); None for a vessel without wind.
+    wind: np.ndarray | None = None
+
+
+def wind_direction_columns(spec: Vessel) -> tuple[int, int] | None:
+    """Return the control indices of the wind's (cos, sin) relative to the bow, or None."""
+    if 'wind' not in spec.environment:
+        return None
+    cos, sin = ENVIRONMENT_DIRECTIONS['wind']
+    return spec.control_index(cos), spec.control_index(sin)
 
 
 DEVICE_COUNT_FLAG = '--xla_force_host_platform_device_count'
@@ -186,6 +199,7 @@ class Forecaster:
             jax.config.update('jax_enable_x64', True)
         self.spec, self.physical, self.dtype = spec, physical, dtype
         self.model_id, self.config = model_id, dict(config or {})
+        self._wind = wind_direction_columns(spec)
         member_config = model_config.get('member', model_config)
         first = members_of(state, model_config)[0]
         self.bound_mode = member_config.get('bound_mode', 'tanh')
@@ -209,7 +223,9 @@ class Forecaster:
         # The physical model's learned values enter the program as constants: XLA folds
         # them into its feature products (measured: 5.9 -> 4.6 ms per 900-step forecast).
         self._physical_arrays = {k: cast(v) for k, v in physical.arrays().items()}
-        self._compiled = jax.jit(self._forecast)
+        # Two programs for a vessel with wind: turning a held wind costs a tenth more per
+        # step, which forecasts that hold none do not pay.
+        self._compiled = jax.jit(self._forecast, static_argnames='turning')
         self.devices = jax.devices('cpu')
         self._device_params = [jax.device_put(self._params, d) for d in self.devices]
 
@@ -263,7 +279,7 @@ class Forecaster:
         return step_bounds(self.relative_threshold, self._output_range, self.spec.dt, horizon)
 
     # ------------------------------------------------------------------ the program
-    def _forecast(self, members, z_window, c_window, c_future):
+    def _forecast(self, members, z_window, c_window, c_future, hold_wind, turning: bool):
         jax = jax_module()
         jnp = jax.numpy
         batch = c_future.shape[0]
@@ -287,44 +303,75 @@ class Forecaster:
         def physical(z, c):
             return self.physical.step(z, c, self._physical_arrays, compiled_repeat)
 
+        wind = self._wind if turning else None
+        if wind is not None:
+            # A held wind stays put over the earth (hybrid_predictor.held_wind): its angle
+            # from the bow is the first step's, turned against the forecast's own heading
+            # change psi, which the dead reckoning's heading_rate integrates as it goes.
+            gamma0 = jnp.arctan2(c_future[:, 0, wind[1]], c_future[:, 0, wind[0]])
+            dt = self.dtype(self.spec.dt)
+
         def step(carry, inputs):
-            (z, recurrents), (c_t, bound) = carry, inputs
+            (z, psi, recurrents), (c_t, bound) = carry, inputs
+            if wind is not None:
+                turned = (jnp.cos(gamma0 - psi), jnp.sin(gamma0 - psi))
+                for column, value in zip(wind, turned, strict=True):
+                    c_t = c_t.at[:, column].set(jnp.where(hold_wind, value, c_t[:, column]))
             z_next, z_phy, _, recurrents = ensemble_step(self.cell, members, physical, z, c_t,
                                                          recurrents, self.bound_mode, bound)
-            return (z_next, recurrents), (z_next, z_phy)
+            if wind is None:
+                return (z_next, psi, recurrents), (z_next, z_phy, c_t[:, list(self._wind or ())])
+            psi = psi + dt * heading_rate(z_next, self.spec)
+            return (z_next, psi, recurrents), (z_next, z_phy, c_t[:, list(wind)])
 
         # The horizon is a static shape: each step's bound is a constant of the program.
         bounds = self.step_bounds(c_future.shape[1]).astype(self.dtype)
-        _, (hybrid, physics) = jax.lax.scan(step, (z0, recurrents),
-                                            (jnp.swapaxes(c_future, 0, 1), bounds))
-        return jnp.swapaxes(hybrid, 0, 1), jnp.swapaxes(physics, 0, 1)
+        psi0 = jnp.zeros((batch,), self.dtype)
+        _, outputs = jax.lax.scan(step, (z0, psi0, recurrents),
+                                  (jnp.swapaxes(c_future, 0, 1), bounds))
+        return tuple(jnp.swapaxes(out, 0, 1) for out in outputs)
 
     # ------------------------------------------------------------------ public API
     def forecast(self, z_window: np.ndarray, c_window: np.ndarray,
-                 c_future: np.ndarray) -> Forecast:
-        """Forecast every plan from one window; arrays in physical units (see class doc)."""
+                 c_future: np.ndarray, hold_wind=None) -> Forecast:
+        """
+        Forecast every plan from one window; arrays in physical units (see class doc).
+
+        ``hold_wind`` (B,) bools marks the plans whose wind is held over the earth: the
+        direction of their first step is turned against the forecast's own heading
+        change at every later step, in the same pass (``hybrid_predictor.held_wind``).
+        Other plans, and vessels without wind, are forecast with the controls as given.
+        """
         z_window = np.asarray(z_window, self.dtype)
         c_window = np.asarray(c_window, self.dtype)
         c_future = np.asarray(c_future, self.dtype)
         if c_future.ndim == 2:
             c_future = c_future[None]
         batch = c_future.shape[0]
+        held = np.zeros(batch, bool) if hold_wind is None else np.asarray(hold_wind, bool)
+        if held.shape != (batch,):
+            raise ValueError(f'hold_wind must give one flag per plan ({batch}), got shape '
+                             f'{held.shape}')
         # Each batch size is its own compiled program: pad to the next of a few sizes
         # so that serving never waits for a compile (warm_up compiles them up front).
         padded = next((b for b in self.batch_buckets if b >= batch), batch)
         if padded > batch:
             pad = np.repeat(c_future[-1:], padded - batch, axis=0)
             c_future = np.concatenate([c_future, pad], axis=0)
+            held = np.concatenate([held, np.zeros(padded - batch, bool)])
         shards = self._shards(padded)
         size = padded // shards
         jax = jax_module()
         # Dispatch is asynchronous: every shard is running before the first is read.
+        turning = self._wind is not None and bool(held.any())
         running = [self._compiled(self._device_params[k], *jax.device_put(
-            (z_window, c_window, c_future[k * size:(k + 1) * size]), self.devices[k]))
+            (z_window, c_window, c_future[k * size:(k + 1) * size],
+             held[k * size:(k + 1) * size]), self.devices[k]), turning=turning)
             for k in range(shards)]
-        hybrid = np.concatenate([np.asarray(h, np.float64) for h, _ in running])
-        physics = np.concatenate([np.asarray(p, np.float64) for _, p in running])
-        return Forecast(hybrid[:batch], physics[:batch])
+        hybrid, physics, wind = (np.concatenate([np.asarray(out[j], np.float64)
+                                                 for out in running])[:batch]
+                                 for j in range(3))
+        return Forecast(hybrid, physics, None if self._wind is None else wind)
 
     def forecast_each(self, z_window: np.ndarray, c_window: np.ndarray, c_future: np.ndarray,
                       progress=iter, seconds: list | None = None) -> Forecast:
@@ -354,9 +401,16 @@ class Forecaster:
     batch_buckets = (1, 4, 16, 64, 256)
 
     def warm_up(self, horizon: int, window: int = 60, max_batch: int = 256) -> None:
-        """Compile every batch bucket up to ``max_batch`` now, so no forecast waits later."""
+        """
+        Compile every batch bucket up to ``max_batch`` now, so no forecast waits later.
+
+        For a vessel with wind, both programs: plans as given, and plans holding the wind.
+        """
         z = np.zeros((window, self.spec.n_state))
         c = np.zeros((window, self.spec.n_control))
+        holds = (False,) if self._wind is None else (False, True)
         for batch in self.batch_buckets:
             if batch <= max(max_batch, 1):
-                self.forecast(z, c, np.zeros((batch, horizon, self.spec.n_control)))
+                for held in holds:
+                    self.forecast(z, c, np.zeros((batch, horizon, self.spec.n_control)),
+                                  np.full(batch, held))

@@ -52,14 +52,29 @@ def dead_reckoning(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]
     if spec.is_spatial:
         return _dead_reckoning_3d(z, spec)
     dt = spec.dt
-    u, v, r = (z[..., spec.state_index(n)] for n in ('u', 'v', 'r'))
-    heading = dt * np.cumsum(r, axis=-1)
-    held = heading - dt * r              # the heading a step starts from
+    u, v = (z[..., spec.state_index(n)] for n in ('u', 'v'))
+    turn = heading_rate(z, spec)
+    heading = dt * np.cumsum(turn, axis=-1)
+    held = heading - dt * turn           # the heading a step starts from
     sway = v * np.cos(z[..., spec.state_index('phi')]) if spec.has_roll else v
     x_dot = u * np.cos(held) - sway * np.sin(held)
     y_dot = u * np.sin(held) + sway * np.cos(held)
     xy = dt * np.stack([np.cumsum(x_dot, axis=-1), np.cumsum(y_dot, axis=-1)], axis=-1)
     return xy, heading
+
+
+def heading_rate(z, spec: Vessel):
+    """
+    Return psi' (rad/s) of states z (..., n_state) as the dead reckoning integrates it.
+
+    r for a vessel on the water, (q sin phi + r cos phi) / cos theta in space; any
+    Array API arrays (the compiled forecaster turns a held wind by it, step by step).
+    """
+    if not spec.is_spatial:
+        return z[..., spec.state_index('r')]
+    p, q, r, phi, theta = (z[..., spec.state_index(n)] for n in ('p', 'q', 'r', 'phi',
+                                                                  'theta'))
+    return attitude_rates(p, q, r, phi, theta)[2]
 
 
 def _dead_reckoning_3d(z: np.ndarray, spec: Vessel) -> tuple[np.ndarray, np.ndarray]:
@@ -78,10 +93,9 @@ def earth_velocities(z: np.ndarray, spec: Vessel, heading0=0.0
     pitch and the heading it starts from. These are the inertial-frame velocities
     (x', y', z') of Baier et al.'s quadrotor, in NED.
     """
-    u, v, w, p, q, r, phi, theta = (z[..., spec.state_index(n)] for n in
-                                    ('u', 'v', 'w', 'p', 'q', 'r', 'phi', 'theta'))
+    u, v, w, phi, theta = (z[..., spec.state_index(n)] for n in ('u', 'v', 'w', 'phi', 'theta'))
     start = np.asarray(heading0, np.float64)[..., None]
-    heading = start + spec.dt * np.cumsum(attitude_rates(p, q, r, phi, theta)[2], axis=-1)
+    heading = start + spec.dt * np.cumsum(heading_rate(z, spec), axis=-1)
     held = np.concatenate([np.broadcast_to(start, heading[..., :1].shape),
                            heading[..., :-1]], axis=-1)
     return np.stack(body_to_ned(u, v, w, phi, theta, held), axis=-1), heading
