@@ -47,6 +47,8 @@ def test_plans_with_their_own_wind_are_forecast_as_given(engine):
     # Held at the bow, the same plan forecasts another turn: the held wind acted.
     bow = engine.forecast(z, c, future[1:]).hybrid[0]
     assert np.abs(bow - forecast.hybrid[1]).max() > 1e-3
+    with pytest.raises(ValueError, match=r'one flag per plan \(2\)'):
+        engine.forecast(z, c, future, hold_wind=[True])
     # Alone or in a batch of two: another compiled float32 program, equal to ~1e-7.
     np.testing.assert_allclose(forecast.hybrid[0], engine.forecast(z, c, future[:1]).hybrid[0],
                                rtol=1e-5, atol=1e-6)
