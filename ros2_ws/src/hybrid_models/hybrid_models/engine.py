@@ -61,7 +61,7 @@ class Forecast:
     hybrid: np.ndarray    # (B, H, n_state)
     physics: np.ndarray   # (B, H, n_state); hybrid - physics is the bounded correction
     # (B, H, 2): the wind direction's (cos, sin) each step used, a held one turned
-    # (``Forecaster.forecast``'s ``hold_wind``); None for a vessel without wind.
+    # (``Forecaster.forecast``'s ``hold_wind``); None when no plan held the wind.
     wind: np.ndarray | None = None
 
 
@@ -320,7 +320,7 @@ class Forecaster:
             z_next, z_phy, _, recurrents = ensemble_step(self.cell, members, physical, z, c_t,
                                                          recurrents, self.bound_mode, bound)
             if wind is None:
-                return (z_next, psi, recurrents), (z_next, z_phy, c_t[:, list(self._wind or ())])
+                return (z_next, psi, recurrents), (z_next, z_phy)
             psi = psi + dt * heading_rate(z_next, self.spec)
             return (z_next, psi, recurrents), (z_next, z_phy, c_t[:, list(wind)])
 
@@ -368,10 +368,10 @@ class Forecaster:
             (z_window, c_window, c_future[k * size:(k + 1) * size],
              held[k * size:(k + 1) * size]), self.devices[k]), turning=turning)
             for k in range(shards)]
-        hybrid, physics, wind = (np.concatenate([np.asarray(out[j], np.float64)
-                                                 for out in running])[:batch]
-                                 for j in range(3))
-        return Forecast(hybrid, physics, None if self._wind is None else wind)
+        hybrid, physics, *wind = (np.concatenate([np.asarray(part, np.float64)
+                                                  for part in parts])[:batch]
+                                  for parts in zip(*running, strict=True))
+        return Forecast(hybrid, physics, wind[0] if turning else None)
 
     def forecast_each(self, z_window: np.ndarray, c_window: np.ndarray, c_future: np.ndarray,
                       progress=iter, seconds: list | None = None) -> Forecast:

@@ -40,13 +40,12 @@ def forecast_holding_wind(engine: Forecaster, states: np.ndarray, controls: np.n
     over the earth (module docstring). Other plans, and vessels without wind, are
     forecast as given. One pass of the engine either way.
     """
-    columns = wind_direction_columns(engine.spec)
     held = np.asarray(held, bool)
-    if columns is None or not held.any():
-        return engine.forecast(states, controls, future), future
     made = engine.forecast(states, controls, future, hold_wind=held)
+    if made.wind is None:
+        return made, future
     used = np.array(future, dtype=float)
-    for j, column in enumerate(columns):
+    for j, column in enumerate(wind_direction_columns(engine.spec)):
         used[held, :, column] = made.wind[held, :, j]
     return made, used
 
