@@ -7,11 +7,12 @@
 #   which `make test` runs) adds the test-only ros2 CLI and launch in a directory of
 #   their own.
 #
-# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|bench|lock]
+# Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|bench|gpu|lock]
 #   (`test`: everything `make test` needs; the workspace build and the test-only tools,
 #   independent of each other, are made at the same time; `bench`: the bench-only
 #   environment of peer models, .venv-bench, from requirements/bench.txt: never part of
-#   the product, nor of `all` or `test`)
+#   the product, nor of `all` or `test`; `gpu`: jax's CUDA build for forecasts on an
+#   NVIDIA GPU, optional, on a machine with its driver)
 # Environment: PYTHON (interpreter to use), VENV (default .venv at the repo root),
 #   ROSTOOLS (default .venv-rostools at the repo root), BENCH (default .venv-bench).
 # Each failure ends with one line starting "setup: error:".
@@ -290,6 +291,20 @@ stage_bench() {
   echo "$want" >"$BENCH/.bench-hash"
 }
 
+# --- stage: jax's CUDA build, for forecasts on a GPU (optional) -------------------------
+# The engine runs on a GPU with `compute_platform: gpu` (docs/predictor.md, "On a GPU"):
+# the CUDA plugin of exactly the pinned jax, its CUDA libraries from the registry (a few
+# GB). Never part of `all` or `test`; refused where no NVIDIA driver sees a GPU.
+stage_gpu() {
+  nvidia-smi -L >/dev/null 2>&1 \
+    || die "no NVIDIA GPU here (nvidia-smi lists none): the forecasts run on the CPU"
+  stage_venv; stage_deps
+  local jax; jax="$(sed -n 's/^jax==//p' "$REQ/python.txt")"
+  [ -n "$jax" ] || die "requirements/python.txt pins no jax version"
+  say "installing jax[cuda12]==$jax into $VENV (its CUDA libraries: a few GB)"
+  pip_install "jax[cuda12]==$jax"
+}
+
 # --- stage: record the exact versions that were installed -----------------------------
 stage_lock() {
   # Pins every distribution the venv holds (not the egg-info entries embedded in the
@@ -332,9 +347,10 @@ main() {
     rostools) stage_venv; stage_deps; stage_fixups; stage_rostools ;;
     test) stage_venv; stage_deps; stage_fixups; both stage_build stage_rostools ;;
     bench) stage_bench ;;
+    gpu) stage_gpu ;;
     lock) stage_lock ;;
     -h|--help) awk 'NR > 1 && !/^#/ {exit} NR > 1 {sub(/^# ?/, ""); print}' "${BASH_SOURCE[0]}" ;;
-    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools, test, bench or lock)" ;;
+    *) die "unknown stage '$stage' (use all, python, venv, deps, fixups, build, rostools, test, bench, gpu or lock)" ;;
   esac
 }
 

@@ -15,7 +15,9 @@ Forecast speed of the default model, all figures measured in one run.
 - rate: a vehicle at its own rate (the Crazyflie at 100 Hz, its shipped model), one
   forecast per state message, idle and beside a busy core (``node_rate``);
 - what-if: a planner's request of 1,000 plans x 100 steps answered by the predictor's
-  own code, stage by stage, without DDS (``what_if``).
+  own code, stage by stage, without DDS (``what_if``);
+- gpu: the engine's single and batch figures on the GPU where jax sees one, and the
+  largest difference of its forecasts from the CPU's; where it sees none, why.
 """
 
 from __future__ import annotations
@@ -217,6 +219,35 @@ def start_up(path: Path, horizon: int) -> dict:
             'start_up_speedup': round(cold / cached, 1)}
 
 
+def gpu_figures(path: Path, cpu_forecast, z, c, future, repeats: int) -> dict:
+    """Time the engine on the GPU as on the CPU (same inputs); {'absent': why} without one."""
+    from hybrid_models.engine import Forecaster, platform_devices
+
+    try:
+        devices = platform_devices('gpu')
+    except ValueError as exc:
+        return {'absent': str(exc)}
+    engine = Forecaster.from_checkpoint(path, platform='gpu')
+    engine.warm_up(future.shape[1], window=engine.window, max_batch=future.shape[0])
+    single = []
+    for i in range(repeats):
+        started = time.perf_counter()
+        engine.forecast(z, c, future[i % len(future):i % len(future) + 1])
+        single.append(time.perf_counter() - started)
+    batch = []
+    for _ in range(10):
+        started = time.perf_counter()
+        on_gpu = engine.forecast(z, c, future)
+        batch.append(time.perf_counter() - started)
+    p50, p99 = percentiles(single)
+    batch_s = float(np.median(batch))
+    return {'devices': [str(d) for d in devices], 'engine_p50_ms': round(p50, 3),
+            'engine_p99_ms': round(p99, 3), 'batch64_ms': round(batch_s * 1e3, 1),
+            'batch64_forecasts_per_s': round(len(future) / batch_s, 1),
+            'max_abs_difference_from_cpu': float(np.abs(on_gpu.hybrid
+                                                        - cpu_forecast.hybrid).max())}
+
+
 def run(args) -> dict:
     """Measure everything; return the figures."""
     import torch
@@ -251,7 +282,7 @@ def run(args) -> dict:
     batch = []
     for _ in range(10):
         started = time.perf_counter()
-        engine.forecast(z, c, future)
+        on_cpu = engine.forecast(z, c, future)
         batch.append(time.perf_counter() - started)
     batch_s = float(np.median(batch))
 
@@ -269,6 +300,7 @@ def run(args) -> dict:
         'batch64_ms': round(batch_s * 1e3, 1),
         'batch64_forecasts_per_s': round(64 / batch_s, 1),
     }
+    result['gpu'] = gpu_figures(path, on_cpu, z, c, future, args.repeats)
     result.update(start_up(path, horizon))
     if not args.skip_node:
         result.update(node_latency(path, args.node_samples))

@@ -429,3 +429,23 @@ def test_an_unbounded_model_is_a_warning_unless_the_user_allowed_it(tmp_path):
         node.destroy_node()
         rclpy.try_shutdown(context=context)
         launcher.stop_all()
+
+
+def test_a_gpu_jax_does_not_see_is_refused_at_start_in_one_line(launcher):
+    import jax
+
+    from hybrid_models.engine import platform_devices
+
+    try:
+        platform_devices('gpu')
+    except ValueError:
+        pass
+    else:
+        pytest.skip('jax sees a GPU here: the node would start on it')
+    predictor = launcher.start_node('hybrid_predictor', 'predictor', '--ros-args',
+                                    '-p', 'compute_platform:=gpu')
+    assert predictor.popen.wait(60) == 2
+    errors = [line for line in predictor.output().splitlines() if 'error' in line.lower()]
+    assert errors == [f"predictor: error: compute platform 'gpu': jax {jax.__version__} sees "
+                      'no GPU here (its CUDA build: tools/setup.sh gpu, on a machine with an '
+                      'NVIDIA driver); use cpu'], predictor.output()

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 import torch
 
-from hybrid_models.engine import Forecaster
+from hybrid_models.engine import Forecaster, platform_devices
 from hybrid_models.models import build_model
 from hybrid_models.recurrent import CELLS
 from vessel_description import load_vessel
@@ -104,7 +104,7 @@ def test_unconstrained_model_passes_the_residual_through():
 SPLIT_CHECK = """
 import json, sys
 import numpy as np
-from hybrid_models.engine import Forecaster
+from hybrid_models.engine import Forecaster, platform_devices
 from tests.unit.test_models_engine import inputs, make_model
 engine = Forecaster.from_model(make_model('pro+lin', threshold=0.15), dtype=np.float64)
 z, c, future = inputs(batch=64)
@@ -192,7 +192,7 @@ import json, sys
 import numpy as np
 import hybrid_predictor.node as node
 import hybrid_models.cli.model_card      # evaluates with the forecaster, torch-free too
-from hybrid_models.engine import Forecaster
+from hybrid_models.engine import Forecaster, platform_devices
 engine = Forecaster.from_checkpoint(node.default_model_path())
 w = engine.window
 out = engine.forecast(np.tile([6.0, 0.0, 0.0, 0.0, 0.0], (w, 1)),
@@ -217,7 +217,7 @@ def test_the_predictor_serves_the_shipped_model_without_importing_torch():
 CACHE_CHECK = """
 import numpy as np
 import hybrid_predictor.node as node
-from hybrid_models.engine import Forecaster
+from hybrid_models.engine import Forecaster, platform_devices
 engine = Forecaster.from_checkpoint(node.default_model_path())
 w = engine.window
 engine.forecast(np.tile([6.0, 0.0, 0.0, 0.0, 0.0], (w, 1)),
@@ -249,3 +249,48 @@ def test_compiled_programs_are_kept_for_the_next_process_unless_turned_off(tmp_p
     # jax's own variable: empty turns it off.
     forecast_in_a_new_process(XDG_CACHE_HOME=str(tmp_path / 'off'), JAX_COMPILATION_CACHE_DIR='')
     assert not (tmp_path / 'off').exists()
+
+
+def _gpu_absent() -> str:
+    """Return why no GPU forecast can be made here ('' when jax sees a GPU)."""
+    try:
+        platform_devices('gpu')
+    except ValueError as exc:
+        return str(exc)
+    return ''
+
+
+def test_an_unknown_or_absent_compute_platform_is_refused_in_one_line():
+    model = make_model('min', threshold=0.15)
+    with pytest.raises(ValueError, match=r"^unknown compute platform 'tpu'; known: cpu, gpu$"):
+        Forecaster.from_model(model, platform='tpu')
+    if _gpu_absent():
+        with pytest.raises(ValueError) as refused:
+            Forecaster.from_model(model, platform='gpu')
+        assert str(refused.value).startswith("compute platform 'gpu': jax ")
+        assert 'tools/setup.sh gpu' in str(refused.value) and '\n' not in str(refused.value)
+
+
+def test_the_gpu_program_at_full_precision_forecasts_as_the_cpu_program():
+    """The program a GPU runs (float32 products at full precision), run on the CPU here."""
+    import jax
+
+    engine = Forecaster.from_model(make_model('hyd', threshold=0.15))
+    z, c, future = inputs(batch=4)
+    args = (engine._device_params[0], z.astype(np.float32), c.astype(np.float32),
+            future.astype(np.float32), np.zeros(4, bool))
+    plain = engine._compiled(*args, turning=False)
+    full = jax.jit(engine._full_precision, static_argnames='turning')(*args, turning=False)
+    for a, b in zip(plain, full, strict=True):
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+
+
+@pytest.mark.skipif(bool(_gpu_absent()), reason=_gpu_absent() or 'a GPU is present')
+def test_a_gpu_forecasts_as_the_cpu_within_float32_rounding():
+    model = make_model('hyd', threshold=0.15)
+    cpu, gpu = (Forecaster.from_model(model, platform=p) for p in ('cpu', 'gpu'))
+    assert gpu.platform == 'gpu' and gpu.devices[0].platform == 'gpu'
+    z, c, future = inputs(batch=16)
+    on_cpu, on_gpu = cpu.forecast(z, c, future), gpu.forecast(z, c, future)
+    scale = np.abs(on_cpu.hybrid).max(axis=(0, 1)) + 1e-6
+    assert np.all(np.abs(on_gpu.hybrid - on_cpu.hybrid).max(axis=(0, 1)) <= 1e-4 * scale)

@@ -67,6 +67,18 @@ def test_unknown_stage_is_rejected(stage):
     assert result.returncode != 0 and 'unknown stage' in error_lines(result.stderr)[0]
 
 
+def test_the_gpu_stage_without_an_nvidia_gpu_is_one_clear_line_and_installs_nothing(tmp_path):
+    fake = tmp_path / 'nvidia-smi'      # the driver's tool, finding no GPU
+    fake.write_text('#!/bin/sh\necho "No devices were found"\nexit 6\n')
+    fake.chmod(0o755)
+    venv = tmp_path / 'venv'
+    result = run_setup('gpu', {'PATH': f'{tmp_path}:{os.environ["PATH"]}', 'VENV': str(venv)})
+    assert result.returncode != 0
+    assert error_lines(result.stderr) == ['setup: error: no NVIDIA GPU here (nvidia-smi lists '
+                                          'none): the forecasts run on the CPU'], result.stderr
+    assert not venv.exists()
+
+
 def test_two_stages_run_at_once_and_either_ones_failure_fails_the_pair(tmp_path):
     # `make test`'s set-up builds the workspace and the test-only tools at the same time.
     marks = tmp_path / 'marks'
@@ -93,5 +105,5 @@ def test_help_is_the_header_comment_and_nothing_after_it():
     lines = result.stdout.splitlines()
     assert lines[0].startswith('Idempotent set-up')
     assert lines[-1] == 'Each failure ends with one line starting "setup: error:".'
-    assert 'Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|bench|lock]' \
+    assert 'Usage: tools/setup.sh [all|python|venv|deps|fixups|build|rostools|test|bench|gpu|lock]' \
         in lines

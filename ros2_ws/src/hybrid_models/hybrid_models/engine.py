@@ -26,6 +26,12 @@ unless the user set it or jax was imported first) and splits batches of
 Each plan's forecast is the same computation wherever it runs. Compiled programs are
 kept on disk (``compilation_cache_dir``), so a process that compiles what another
 compiled before loads it instead.
+
+``platform='gpu'`` runs the same program on the GPUs jax sees (its CUDA build,
+``tools/setup.sh gpu``), batches split across them as across host devices; float32
+matrix products there run at full precision, so forecasts agree with the CPU's to
+float32 rounding (GPUs otherwise multiply in TF32). Asked for a GPU jax does not see,
+the forecaster refuses in one line.
 """
 
 from __future__ import annotations
@@ -74,6 +80,7 @@ def wind_direction_columns(spec: Vessel) -> tuple[int, int] | None:
 
 
 DEVICE_COUNT_FLAG = '--xla_force_host_platform_device_count'
+PLATFORMS = ('cpu', 'gpu')   # where a forecaster may run (``platform_devices``)
 MIN_SHARD = 8   # plans per device below which splitting a batch costs more than it gains
 
 
@@ -129,6 +136,19 @@ def jax_module():
 
     _use_compilation_cache(jax)
     return jax
+
+
+def platform_devices(platform: str) -> list:
+    """Return jax's devices of ``platform`` ('cpu' or 'gpu'); ValueError in one line if none."""
+    if platform not in PLATFORMS:
+        raise ValueError(f'unknown compute platform {platform!r}; known: {", ".join(PLATFORMS)}')
+    jax = jax_module()
+    try:
+        return jax.devices(platform)
+    except RuntimeError:
+        raise ValueError(f'compute platform {platform!r}: jax {jax.__version__} sees no GPU '
+                         f'here (its CUDA build: tools/setup.sh gpu, on a machine with an '
+                         f'NVIDIA driver); use cpu') from None
 
 
 def compiled_repeat(n, body, x):
@@ -187,14 +207,17 @@ class Forecaster:
     ``forecast(z_window, c_window, c_future)`` takes one initialization window
     (W, n_state) and (W, n_control) and B plans of future controls (B, H, n_control),
     indexed as in ``hybrid_models.data``: c_future[:, 0] is the control at the last
-    window sample. Computation runs in ``dtype`` (float32 by default, as trained).
-    Build one with ``from_checkpoint`` (serving) or ``from_model`` (a torch model).
+    window sample. Computation runs in ``dtype`` (float32 by default, as trained), on
+    ``platform`` ('cpu' by default, or 'gpu'; see the module docstring). Build one with
+    ``from_checkpoint`` (serving) or ``from_model`` (a torch model).
     """
 
     def __init__(self, spec: Vessel, model_config: dict, physical: PhysicalModel,
                  state: dict, relative_threshold: float | None = None, dtype=np.float32,
-                 model_id: str = '', config: dict | None = None):
+                 model_id: str = '', config: dict | None = None, platform: str = 'cpu'):
         jax = jax_module()
+        self.devices = platform_devices(platform)
+        self.platform = platform
         if dtype == np.float64:
             jax.config.update('jax_enable_x64', True)
         self.spec, self.physical, self.dtype = spec, physical, dtype
@@ -225,35 +248,36 @@ class Forecaster:
         self._physical_arrays = {k: cast(v) for k, v in physical.arrays().items()}
         # Two programs for a vessel with wind: turning a held wind costs a tenth more per
         # step, which forecasts that hold none do not pay.
-        self._compiled = jax.jit(self._forecast, static_argnames='turning')
-        self.devices = jax.devices('cpu')
+        program = self._forecast if platform == 'cpu' else self._full_precision
+        self._compiled = jax.jit(program, static_argnames='turning')
         self._device_params = [jax.device_put(self._params, d) for d in self.devices]
 
     @classmethod
     def from_checkpoint(cls, path: str | Path, relative_threshold: float | None = None,
-                        dtype=np.float32) -> Forecaster:
+                        dtype=np.float32, platform: str = 'cpu') -> Forecaster:
         """Serve a hybrid checkpoint (read without torch, never unpickled)."""
         config, state = read_model_arrays(path)
         digest = hashlib.sha256(Path(path).read_bytes()).hexdigest()[:12]
         try:
             return cls._build(vessel_of(config, path), config.get('model') or {}, state,
                               relative_threshold, dtype, f'{Path(path).stem}@{digest}',
-                              config)
+                              config, platform)
         except (KeyError, TypeError) as exc:
             raise CheckpointError(f'{path}: checkpoint does not match its model '
                                   f'({type(exc).__name__}: {exc})') from None
 
     @classmethod
     def from_model(cls, model, relative_threshold: float | None = None, dtype=np.float32,
-                   model_id: str = '', config: dict | None = None) -> Forecaster:
+                   model_id: str = '', config: dict | None = None,
+                   platform: str = 'cpu') -> Forecaster:
         """Serve a trained torch ``HybridModel`` (its weights are copied to numpy)."""
         state = {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
         return cls._build(model.spec, model.describe(), state, relative_threshold, dtype,
-                          model_id, config)
+                          model_id, config, platform)
 
     @classmethod
     def _build(cls, spec, model_config: dict, state: dict, relative_threshold, dtype,
-               model_id: str, config: dict | None) -> Forecaster:
+               model_id: str, config: dict | None, platform: str = 'cpu') -> Forecaster:
         kind = model_config.get('kind')
         if kind not in ('hybrid', ENSEMBLE):
             raise CheckpointError(f'the forecaster serves hybrid models and ensembles of '
@@ -264,7 +288,7 @@ class Forecaster:
         physical = build_physical(member_config['physical'], spec)
         physical.load_arrays(part(first, 'physical'))
         return cls(spec, model_config, physical, state, relative_threshold, dtype, model_id,
-                   config)
+                   config, platform)
 
     @property
     def window(self) -> int:
@@ -279,6 +303,10 @@ class Forecaster:
         return step_bounds(self.relative_threshold, self._output_range, self.spec.dt, horizon)
 
     # ------------------------------------------------------------------ the program
+    def _full_precision(self, *args, turning: bool):
+        with jax_module().default_matmul_precision('highest'):
+            return self._forecast(*args, turning=turning)
+
     def _forecast(self, members, z_window, c_window, c_future, hold_wind, turning: bool):
         jax = jax_module()
         jnp = jax.numpy

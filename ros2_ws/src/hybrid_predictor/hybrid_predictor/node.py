@@ -117,7 +117,8 @@ class PredictorNode(Node):
                                                                'predictor.yaml')))
         self.p = p
         path = Path(p['model_path']) if p['model_path'] else default_model_path(p['vessel'])
-        engine = Forecaster.from_checkpoint(path, p['relative_threshold'])
+        engine = Forecaster.from_checkpoint(path, p['relative_threshold'],
+                                            platform=p['compute_platform'])
         self.engine = engine
         self.spec, vessel_note = served_vessel(p['vessel'], engine.spec, str(path))
         self.get_logger().info(f'vessel {self.spec.name}: {vessel_note}')
