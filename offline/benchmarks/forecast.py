@@ -17,7 +17,11 @@ Forecast speed of the default model, all figures measured in one run.
 - what-if: a planner's request of 1,000 plans x 100 steps answered by the predictor's
   own code, stage by stage, without DDS (``what_if``);
 - gpu: the engine's single and batch figures on the GPU where jax sees one, and the
-  largest difference of its forecasts from the CPU's; where it sees none, why.
+  largest difference of its forecasts from the CPU's; where it sees none, why;
+- precision (``--precision-dataset DIR``): the model's test forecasts of a dataset (its
+  model card's protocol) served in float32, as the predictor serves them, against the
+  same in float64: the largest difference per state, also as a share of the state's
+  test RMSE, and the trajectory error of each.
 """
 
 from __future__ import annotations
@@ -78,6 +82,9 @@ def add_arguments(parser) -> None:
                              '(1000; 0 leaves it out)')
     parser.add_argument('--what-if-steps', type=int, default=100,
                         help='steps of each what-if plan (100)')
+    parser.add_argument('--precision-dataset', type=Path, default=None,
+                        help="a dataset whose test forecasts are compared in float32 and "
+                             "float64 (the default model's: data/ship96 of its model card)")
     parser.add_argument('--skip-rate', action='store_true',
                         help="leave out the measurement at the vehicle's rate")
 
@@ -248,6 +255,36 @@ def gpu_figures(path: Path, cpu_forecast, z, c, future, repeats: int) -> dict:
                                                         - cpu_forecast.hybrid).max())}
 
 
+def precision(path: Path, dataset_dir: Path) -> dict:
+    """Serve the test forecasts of ``dataset_dir`` in float32 and float64; compare them."""
+    from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
+    from hybrid_models.engine import Forecaster
+    from hybrid_models.metrics import forecast_metrics
+    from vessel_datasets.format import read_dataset
+
+    served = Forecaster.from_checkpoint(path)                      # float32, as served
+    dataset = read_dataset(dataset_dir)
+    dataset.vessel.check_compatible(served.spec, f'checkpoint {path}')
+    _, horizon, stride = evaluation_protocol(served.spec, served.window, None, None)
+    runs = load_runs(dataset, 'test', served.spec)
+    windows = forecast_windows(runs, served.window, horizon, stride, target='true')
+    problems = (windows.z_window, windows.c_window, windows.c_future)
+    single = served.forecast_each(*problems).hybrid
+    double = Forecaster.from_checkpoint(path, dtype=np.float64).forecast_each(*problems).hybrid
+    metrics = {name: forecast_metrics(f, windows.z_target, served.spec)
+               for name, f in (('float32', single), ('float64', double))}
+    difference = np.abs(single - double).max(axis=(0, 1))
+    names = served.spec.state_names
+    return {
+        'dataset': str(dataset_dir), 'test_runs': len(runs), 'forecasts': len(single),
+        'horizon': horizon,
+        'max_abs_difference': dict(zip(names, difference.tolist(), strict=True)),
+        'max_difference_over_rmse': {s: float(d / metrics['float64']['rmse'][s])
+                                     for s, d in zip(names, difference, strict=True)},
+        'trajectory_m': {k: m['trajectory']['mean'] for k, m in metrics.items()},
+        'rmse': {k: m['rmse'] for k, m in metrics.items()}}
+
+
 def run(args) -> dict:
     """Measure everything; return the figures."""
     import torch
@@ -301,6 +338,8 @@ def run(args) -> dict:
         'batch64_forecasts_per_s': round(64 / batch_s, 1),
     }
     result['gpu'] = gpu_figures(path, on_cpu, z, c, future, args.repeats)
+    if args.precision_dataset is not None:   # last: float64 turns on jax's x64 mode
+        result['precision'] = precision(path, args.precision_dataset)
     result.update(start_up(path, horizon))
     if not args.skip_node:
         result.update(node_latency(path, args.node_samples))
