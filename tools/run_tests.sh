@@ -33,10 +33,10 @@ if [ "${1:-}" = "--slow" ]; then
   shift
   marker=(-m slow)
   # The slow unit checks are long proofs that share a file's measurement (a module
-  # fixture or cache): dealt out a file at a time, the largest first, each measurement is
-  # made once. (pytest-xdist's loadgroup, which would group tests across files, does
-  # nothing under pytest 9.)
-  dist=(--dist loadfile)
+  # fixture or cache): dealt out a file at a time, the longest first (tests/conftest.py),
+  # each measurement is made once. (pytest-xdist's loadgroup, which would group tests
+  # across files, does nothing under pytest 9.)
+  dist=(--dist loadfile --no-loadscope-reorder)
   longest=15
 else
   dist=(--dist loadfile --no-loadscope-reorder)
