@@ -16,19 +16,12 @@ LONGEST_FIRST = tuple(f'unit/test_{name}.py' for name in (
     'training_resume',
     'simulate_cli', 'physics_simulator', 'models_engine', 'workflow', 'diagnosis_mmg',
     'physics_manoeuvres', 'held_wind'))
-# The slow unit checks (`-m slow`, make test-slow) have their own longest files: long
-# proofs of minutes each, dealt out longest first so that neither worker ends alone
-# (seconds of the slow run of 2026-11-29, two workers: 501, 444, 383, 336 and 233).
-SLOW_LONGEST_FIRST = tuple(f'unit/test_{name}.py' for name in (
-    'diagnosis_proof', 'diagnosis_coverage', 'predictor_departure_proof',
-    'diagnosis_multirotor', 'real_claims', 'training_reproduce', 'compare_physics'))
 TESTS = Path(__file__).resolve().parent
 
 
-def pytest_collection_modifyitems(config, items):
+def pytest_collection_modifyitems(items):
     """Put the longest files' tests first; within a file and among the rest keep the order."""
-    slow = config.getoption('markexpr', '') == 'slow'
-    rank = {name: i for i, name in enumerate(SLOW_LONGEST_FIRST if slow else LONGEST_FIRST)}
+    rank = {name: i for i, name in enumerate(LONGEST_FIRST)}
 
     def place(item) -> int:
         path = Path(str(item.path)).resolve()

@@ -33,10 +33,12 @@ if [ "${1:-}" = "--slow" ]; then
   shift
   marker=(-m slow)
   # The slow unit checks are long proofs that share a file's measurement (a module
-  # fixture or cache): dealt out a file at a time, the longest first (tests/conftest.py),
-  # each measurement is made once. (pytest-xdist's loadgroup, which would group tests
-  # across files, does nothing under pytest 9.)
-  dist=(--dist loadfile --no-loadscope-reorder)
+  # fixture or cache): dealt out a file at a time, each measurement is made once.
+  # (pytest-xdist's loadgroup, which would group tests across files, does nothing under
+  # pytest 9.) In pytest-xdist's order (by number of tests) the real-data studies' 233 s
+  # of torch training run last, alone; dealt out longest first they ran beside the
+  # nanodrone's diagnosis and both slowed (319 s; the unit part 21.3 min against 19.8).
+  dist=(--dist loadfile)
   longest=15
 else
   dist=(--dist loadfile --no-loadscope-reorder)
@@ -50,18 +52,18 @@ fi
 # clocks: two files at a time, each worker in a DDS domain of its own (conftest.py).
 cores="$(python -c 'import os; print(len(os.sched_getaffinity(0)))')"
 workers="$(( cores < 4 ? cores : 4 ))"
-# Threads matched to cores: each unit worker's BLAS and OpenMP (numpy, scipy, torch by
-# default) get their share of the cores, not all of them. Two workers of two threads
-# each on two cores spin against each other: diagnosis-heavy files took 12-15 % longer
-# (32.5-34.3 s against 27.2-30.0 s for test_diagnosis_cases and _families, -n 2).
-# A caller's own setting is kept; an explicit torch.set_num_threads (a training
-# config's `threads`) still decides for itself.
+# Threads matched to cores: each unit worker's BLAS (numpy's and scipy's OpenBLAS) gets
+# its share of the cores, not all of them. Two workers of two BLAS threads each on two
+# cores spin against each other: diagnosis-heavy files took 12-15 % longer (32.5-34.3 s
+# against 27.2-30.0 s for test_diagnosis_cases and _families, -n 2), and the nanodrone's
+# diagnosis run whole took 172 and 180 s in the slow run before, 102 and 111 s after.
+# torch's OpenMP threads are left as they are: one each made the short real-data
+# trainings slower (52 s against 38 s). A caller's own setting is kept.
 share="$(( cores / workers > 0 ? cores / workers : 1 ))"
 # The slowest tests are listed at the end of each run: the suite must stay within its
 # time budget (README), and CI's log then says where the time went.
 (
   export OPENBLAS_NUM_THREADS="${OPENBLAS_NUM_THREADS:-$share}"
-  export OMP_NUM_THREADS="${OMP_NUM_THREADS:-$share}"
   pytest_run tests/unit "${marker[@]}" -n "$workers" "${dist[@]}" --durations="$longest"
 )
 unit=$?
