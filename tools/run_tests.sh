@@ -54,8 +54,8 @@ cores="$(python -c 'import os; print(len(os.sched_getaffinity(0)))')"
 workers="$(( cores < 4 ? cores : 4 ))"
 # Threads matched to cores: each unit worker's BLAS (numpy's and scipy's OpenBLAS) gets
 # its share of the cores, not all of them. Two workers of two BLAS threads each on two
-# cores spin against each other: diagnosis-heavy files took 12-15 % longer (32.5-34.3 s
-# against 27.2-30.0 s for test_diagnosis_cases and _families, -n 2), and the nanodrone's
+# cores spin against each other: diagnosis-heavy files took 14-16 % longer (31.4-31.9 s
+# against 27.0-27.6 s for test_diagnosis_cases and _families, -n 2), and the nanodrone's
 # diagnosis run whole took 172 and 180 s in the slow run before, 102 and 111 s after.
 # torch's OpenMP threads are left as they are: one each made the short real-data
 # trainings slower (52 s against 38 s). A caller's own setting is kept.
