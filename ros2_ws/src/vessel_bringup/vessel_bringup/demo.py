@@ -100,8 +100,8 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
     With a ``plan`` the client steers the vessel along it and announces it to the
     predictor. ``kept`` (a ``hybrid_predictor.re_forecast.ReForecast``) receives what the
     predictor is given: its input messages and the plan. ``stop_simulator`` is called
-    once the truth is complete, before the predictor's final /diagnostics is awaited (so
-    its counts cover every forecast). Returns (truth by simulated
+    once the truth is complete, before a /diagnostics report of the predictor that counts
+    every forecast heard is awaited (at most 5 s). Returns (truth by simulated
     second, kept forecasts by their start second, the stamps (s) of every forecast heard,
     the values of the predictor's newest /diagnostics status).
     """
@@ -184,15 +184,26 @@ def collect(seconds: float, speed_up: float, every: int, start_simulator,
                 last_report = time.monotonic()
         if stop_simulator is not None:
             stop_simulator()
-            heard_before, deadline = len(ready), time.monotonic() + 5.0
-            while len(ready) == heard_before and time.monotonic() < deadline:
+            # Until a report counts every forecast heard: the last state's forecast can
+            # be made after the simulator stopped, its actuators and wind cut off (then
+            # counted as made before its sample was complete), after a report was sent.
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline and int(
+                    predictor_status(ready).get('forecasts_published', 0)) < len(heard):
                 rclpy.spin_once(node, timeout_sec=0.1)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
-    status = {kv.key: kv.value for array in ready[-1:] for s in array.status
-              if s.name.endswith(': forecast') for kv in s.values}
-    return truth, forecasts, heard, status
+    return truth, forecasts, heard, predictor_status(ready)
+
+
+def predictor_status(reports) -> dict:
+    """Return the values of the predictor's newest forecast status among /diagnostics reports."""
+    for array in reversed(reports):
+        for status in array.status:
+            if status.name.endswith(': forecast'):
+                return {kv.key: kv.value for kv in status.values}
+    return {}
 
 
 def model_states(values, msg) -> np.ndarray:
