@@ -1,7 +1,6 @@
 """The demo reads the predictor's counts from its newest forecast status on /diagnostics."""
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-
 from vessel_bringup.demo import predictor_status
 
 
