@@ -226,6 +226,26 @@ def start_up(path: Path, horizon: int) -> dict:
             'start_up_speedup': round(cold / cached, 1)}
 
 
+def engine_times(engine, z, c, future, repeats: int) -> tuple[float, float, float, object]:
+    """
+    Time a warmed-up engine: one plan at a time ``repeats`` times, then the whole batch.
+
+    Returns the single forecast's p50 and p99 (ms), the batch's median (s) over 10 and
+    the batch's forecast.
+    """
+    single = []
+    for i in range(repeats):
+        started = time.perf_counter()
+        engine.forecast(z, c, future[i % len(future):i % len(future) + 1])
+        single.append(time.perf_counter() - started)
+    batch = []
+    for _ in range(10):
+        started = time.perf_counter()
+        made = engine.forecast(z, c, future)
+        batch.append(time.perf_counter() - started)
+    return (*percentiles(single), float(np.median(batch)), made)
+
+
 def gpu_figures(path: Path, cpu_forecast, z, c, future, repeats: int) -> dict:
     """Time the engine on the GPU as on the CPU (same inputs); {'absent': why} without one."""
     from hybrid_models.engine import Forecaster, platform_devices
@@ -236,18 +256,7 @@ def gpu_figures(path: Path, cpu_forecast, z, c, future, repeats: int) -> dict:
         return {'absent': str(exc)}
     engine = Forecaster.from_checkpoint(path, platform='gpu')
     engine.warm_up(future.shape[1], window=engine.window, max_batch=future.shape[0])
-    single = []
-    for i in range(repeats):
-        started = time.perf_counter()
-        engine.forecast(z, c, future[i % len(future):i % len(future) + 1])
-        single.append(time.perf_counter() - started)
-    batch = []
-    for _ in range(10):
-        started = time.perf_counter()
-        on_gpu = engine.forecast(z, c, future)
-        batch.append(time.perf_counter() - started)
-    p50, p99 = percentiles(single)
-    batch_s = float(np.median(batch))
+    p50, p99, batch_s, on_gpu = engine_times(engine, z, c, future, repeats)
     return {'devices': [str(d) for d in devices], 'engine_p50_ms': round(p50, 3),
             'engine_p99_ms': round(p99, 3), 'batch64_ms': round(batch_s * 1e3, 1),
             'batch64_forecasts_per_s': round(len(future) / batch_s, 1),
@@ -255,14 +264,17 @@ def gpu_figures(path: Path, cpu_forecast, z, c, future, repeats: int) -> dict:
                                                         - cpu_forecast.hybrid).max())}
 
 
-def precision(path: Path, dataset_dir: Path) -> dict:
-    """Serve the test forecasts of ``dataset_dir`` in float32 and float64; compare them."""
+def precision(served, path: Path, dataset_dir: Path) -> dict:
+    """
+    Forecast the test split of ``dataset_dir`` with ``served`` and in float64; compare.
+
+    ``served`` is the float32 ``Forecaster`` of checkpoint ``path``, as the node serves it.
+    """
     from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
     from hybrid_models.engine import Forecaster
     from hybrid_models.metrics import forecast_metrics
     from vessel_datasets.format import read_dataset
 
-    served = Forecaster.from_checkpoint(path)                      # float32, as served
     dataset = read_dataset(dataset_dir)
     dataset.vessel.check_compatible(served.spec, f'checkpoint {path}')
     _, horizon, stride = evaluation_protocol(served.spec, served.window, None, None)
@@ -300,12 +312,7 @@ def run(args) -> dict:
     z, c, future = inputs(window, horizon, batch=64)
     engine.warm_up(horizon, window=window, max_batch=64)
 
-    single = []
-    for i in range(args.repeats):
-        started = time.perf_counter()
-        engine.forecast(z, c, future[i % 64:i % 64 + 1])
-        single.append(time.perf_counter() - started)
-    p50, p99 = percentiles(single)
+    p50, p99, batch_s, on_cpu = engine_times(engine, z, c, future, args.repeats)
 
     naive = []
     t = lambda a: torch.as_tensor(a[None] if a.ndim == 2 else a, dtype=torch.float32)  # noqa
@@ -315,13 +322,6 @@ def run(args) -> dict:
             model.forecast(t(z), t(c), t(future[i:i + 1]))
             naive.append(time.perf_counter() - started)
     naive_p50 = percentiles(naive)[0]
-
-    batch = []
-    for _ in range(10):
-        started = time.perf_counter()
-        on_cpu = engine.forecast(z, c, future)
-        batch.append(time.perf_counter() - started)
-    batch_s = float(np.median(batch))
 
     flops = forecast_flops(model, window, horizon)
     rate = matmul_rate()
@@ -339,7 +339,7 @@ def run(args) -> dict:
     }
     result['gpu'] = gpu_figures(path, on_cpu, z, c, future, args.repeats)
     if args.precision_dataset is not None:   # last: float64 turns on jax's x64 mode
-        result['precision'] = precision(path, args.precision_dataset)
+        result['precision'] = precision(engine, path, args.precision_dataset)
     result.update(start_up(path, horizon))
     if not args.skip_node:
         result.update(node_latency(path, args.node_samples))

@@ -9,6 +9,7 @@ import json
 import subprocess
 import sys
 
+from hybrid_models.engine import Forecaster
 from offline.benchmarks.forecast import default_model, precision
 
 from .test_simulate_cli import ROOT
@@ -26,7 +27,8 @@ def test_float32_forecasts_are_the_float64_ones_within_the_stated_tolerance(tmp_
                            '--seconds', '1100', '--seed', '5', '--out', str(data), '--quiet'],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
-    measured = precision(default_model(), data)
+    model = default_model()
+    measured = precision(Forecaster.from_checkpoint(model), model, data)
     print(json.dumps(measured, indent=1))
     assert measured['test_runs'] == 1 and measured['forecasts'] >= 1
     assert set(measured['max_difference_over_rmse']) == {'u', 'v', 'p', 'r', 'phi'}
