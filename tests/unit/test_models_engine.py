@@ -104,7 +104,7 @@ def test_unconstrained_model_passes_the_residual_through():
 SPLIT_CHECK = """
 import json, sys
 import numpy as np
-from hybrid_models.engine import Forecaster, platform_devices
+from hybrid_models.engine import Forecaster
 from tests.unit.test_models_engine import inputs, make_model
 engine = Forecaster.from_model(make_model('pro+lin', threshold=0.15), dtype=np.float64)
 z, c, future = inputs(batch=64)
@@ -192,7 +192,7 @@ import json, sys
 import numpy as np
 import hybrid_predictor.node as node
 import hybrid_models.cli.model_card      # evaluates with the forecaster, torch-free too
-from hybrid_models.engine import Forecaster, platform_devices
+from hybrid_models.engine import Forecaster
 engine = Forecaster.from_checkpoint(node.default_model_path())
 w = engine.window
 out = engine.forecast(np.tile([6.0, 0.0, 0.0, 0.0, 0.0], (w, 1)),
@@ -217,7 +217,7 @@ def test_the_predictor_serves_the_shipped_model_without_importing_torch():
 CACHE_CHECK = """
 import numpy as np
 import hybrid_predictor.node as node
-from hybrid_models.engine import Forecaster, platform_devices
+from hybrid_models.engine import Forecaster
 engine = Forecaster.from_checkpoint(node.default_model_path())
 w = engine.window
 engine.forecast(np.tile([6.0, 0.0, 0.0, 0.0, 0.0], (w, 1)),
