@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import torch
 
+from vessel_physics.arrays import stack_last
 from vessel_physics.family import Physics
 from vessel_physics.integrator import kinematics, rk4_step
 from vessel_physics.patrol import forces as terms
@@ -81,6 +82,31 @@ def test_hull_damping_by_hand():
          - 214000 * phi * abs(u * v) - 4.98e6 * phi * u * abs(r) - 8000 * phi * u * abs(u))
     got = terms.hull_damping(z_of(u, v, p, r, phi), c_of(), P)[0]
     np.testing.assert_allclose(got, [x, y, k, n], rtol=1e-12)
+
+
+def test_the_numpy_hull_features_are_the_term_formulas_bit_for_bit():
+    """The simulator's gathered features: every HULL_TERMS product, row-major, same bits."""
+    rng = np.random.default_rng(4)
+    z = rng.normal(size=(257, 5)) * [3.0, 1.0, 0.2, 0.1, 0.3]
+    z[0], z[1], z[2, 0] = 0.0, -0.0, -7.5
+    states = {name: z[:, i] for i, name in enumerate(terms.Z_COLUMNS)}
+    formulas = np.stack(terms.hull_terms(terms.HULL_DAMPING_FEATURES, states), axis=-1)
+    gathered = terms.hull_damping_features(z)
+    assert gathered.view(np.int64).tolist() == formulas.view(np.int64).tolist()
+    # the layout decides OpenBLAS's path through the product with the coefficients
+    assert gathered.flags['C_CONTIGUOUS']
+    matrix = terms.hull_damping_matrix(P)
+    assert np.array_equal(gathered @ matrix, formulas @ matrix)
+    torch_features = terms.hull_damping_features(torch.as_tensor(z))
+    assert np.array_equal(torch_features.numpy(), formulas)
+
+
+def test_stack_last_is_np_stack_on_the_last_axis():
+    parts = [np.arange(6.0).reshape(2, 3) * k for k in (1.0, -2.0, 0.5)]
+    stacked = stack_last(parts, np)
+    assert np.array_equal(stacked, np.stack(parts, axis=-1)) and stacked.flags['C_CONTIGUOUS']
+    tensors = [torch.as_tensor(p) for p in parts]
+    assert torch.equal(stack_last(tensors, torch), torch.stack(tensors, dim=-1))
 
 
 def test_propulsion_by_hand():

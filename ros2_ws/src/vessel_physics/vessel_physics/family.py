@@ -41,7 +41,7 @@ from typing import Any
 
 import numpy as np
 
-from vessel_physics.arrays import constant, namespace
+from vessel_physics.arrays import constant, namespace, stack_last
 from vessel_physics.errors import ConfigError
 
 KINDS = ('force', 'candidate', 'feature')
@@ -255,7 +255,7 @@ class Physics:
         if self.controls is None:
             return c
         xp = namespace(c)
-        return xp.stack([c[..., j] for j in self.controls], axis=-1)
+        return stack_last([c[..., j] for j in self.controls], xp)
 
     def term_force(self, name: str, z_water, c, z_ground=None, params=None):
         """One term's force (..., n_dof) in the vessel's vectors, at ``params`` if given."""
@@ -425,7 +425,7 @@ def one_dof(value, dof: int, n_dof: int):
     """Return (..., n_dof) with ``value`` in column ``dof`` and zeros elsewhere."""
     xp = namespace(value)
     zero = xp.zeros_like(value)
-    return xp.stack([value if j == dof else zero for j in range(n_dof)], axis=-1)
+    return stack_last([value if j == dof else zero for j in range(n_dof)], xp)
 
 
 def unit_force(z, dof: int, n_dof: int):

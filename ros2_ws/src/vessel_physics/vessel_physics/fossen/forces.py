@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from vessel_physics.apparent import apparent_wind
-from vessel_physics.arrays import constant, namespace
+from vessel_physics.arrays import constant, namespace, stack_last
 from vessel_physics.family import unit_force
 from vessel_physics.fossen.params import FossenParams
 
@@ -30,8 +30,7 @@ def rigid_body_coriolis(z, c, params: FossenParams):
     xp = namespace(z)
     u, v, r = z[..., 0], z[..., 1], z[..., 2]
     m = params.m
-    return xp.stack([m * (v * r + params.x_G * r * r), -m * u * r, -m * params.x_G * u * r],
-                    axis=-1)
+    return stack_last([m * (v * r + params.x_G * r * r), -m * u * r, -m * params.x_G * u * r], xp)
 
 
 def added_mass_coriolis(z, c, params: FossenParams):
@@ -45,15 +44,15 @@ def added_mass_coriolis(z, c, params: FossenParams):
     u, v, r = z[..., 0], z[..., 1], z[..., 2]
     a11, a22 = -params.Xudot, -params.Yvdot
     a23 = -0.5 * (params.Yrdot + params.Nvdot)
-    return xp.stack([(a22 * v + a23 * r) * r, -a11 * u * r,
-                     (a11 - a22) * u * v - a23 * u * r], axis=-1)
+    return stack_last([(a22 * v + a23 * r) * r, -a11 * u * r,
+                       (a11 - a22) * u * v - a23 * u * r], xp)
 
 
 def damping_features(z):
     """Return the damping features [u, |u|u, v, r, |v|v, |r|r] (..., 6)."""
     xp = namespace(z)
     u, v, r = z[..., 0], z[..., 1], z[..., 2]
-    return xp.stack([u, xp.abs(u) * u, v, r, xp.abs(v) * v, xp.abs(r) * r], axis=-1)
+    return stack_last([u, xp.abs(u) * u, v, r, xp.abs(v) * v, xp.abs(r) * r], xp)
 
 
 def damping_matrix(params: FossenParams) -> np.ndarray:
@@ -89,8 +88,7 @@ def crossflow(z, c, params: FossenParams):
     k = -0.5 * params.rho * params.crossflow_draft * params.crossflow_Cd * dx
     flow = v[..., None] + x * r[..., None]
     drag = k * flow * xp.abs(flow)
-    return xp.stack([xp.zeros_like(u), xp.sum(drag, axis=-1), xp.sum(x * drag, axis=-1)],
-                    axis=-1)
+    return stack_last([xp.zeros_like(u), xp.sum(drag, axis=-1), xp.sum(x * drag, axis=-1)], xp)
 
 
 def thrust(n, thruster):
@@ -114,7 +112,7 @@ def _thruster_force(c, params: FossenParams, weights):
         y_force = y_force + fy
         n_moment = n_moment + t.x * fy - t.y * fx
     zero = xp.zeros_like(c[..., 0])
-    return xp.stack([zero + x_force, zero + y_force, zero + n_moment], axis=-1)
+    return stack_last([zero + x_force, zero + y_force, zero + n_moment], xp)
 
 
 def thrusters(z, c, params: FossenParams):
@@ -153,7 +151,7 @@ def rudders(z, c, params: FossenParams):
         x_force = x_force + fx
         y_force = y_force + fy
         n_moment = n_moment + rudder.x * fy - rudder.y * fx
-    return xp.stack([x_force, y_force, n_moment], axis=-1)
+    return stack_last([x_force, y_force, n_moment], xp)
 
 
 def wind(z, c, params: FossenParams):
@@ -171,10 +169,10 @@ def wind(z, c, params: FossenParams):
         return xp.zeros_like(z)
     q, cos_g, sin_g = apparent_wind(z[..., 0], z[..., 1], c[..., first], c[..., first + 1],
                                     c[..., first + 2])
-    return xp.stack([-q * params.wind_cx * params.wind_AF * cos_g,
-                     -q * params.wind_cy * params.wind_AL * sin_g,
-                     -2.0 * q * params.wind_cn * params.wind_AL * params.wind_Loa * sin_g
-                     * cos_g], axis=-1)
+    return stack_last([-q * params.wind_cx * params.wind_AF * cos_g,
+                       -q * params.wind_cy * params.wind_AL * sin_g,
+                       -2.0 * q * params.wind_cn * params.wind_AL * params.wind_Loa * sin_g
+                       * cos_g], xp)
 
 
 def _constant(z, dof: int):

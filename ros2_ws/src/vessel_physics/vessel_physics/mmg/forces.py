@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import math
 
-from vessel_physics.arrays import namespace
+from vessel_physics.arrays import namespace, stack_last
 from vessel_physics.mmg.params import MmgParams
 
 DOFS = ('X', 'Y', 'N')
@@ -94,7 +94,7 @@ def hull(z, c, params: MmgParams):
         + p.Y_vrr * v_d * r_d * r_d + p.Y_rrr * r_d ** 3
     n = p.N_v * v_d + p.N_r * r_d + p.N_vvv * v_d ** 3 + p.N_vvr * v_d * v_d * r_d \
         + p.N_vrr * v_d * r_d * r_d + p.N_rrr * r_d ** 3
-    return xp.stack([q * x, q * y, q * params.L_pp * n], axis=-1)
+    return stack_last([q * x, q * y, q * params.L_pp * n], xp)
 
 
 def propeller(z, c, params: MmgParams):
@@ -105,7 +105,7 @@ def propeller(z, c, params: MmgParams):
     u_a = (1.0 - wake_fraction(z, params)) * u
     thrust = params.rho * params.D_p ** 2 * _thrust_coefficient_n2(xp, n_rps, u_a, params)
     zero = xp.zeros_like(u)
-    return xp.stack([(1.0 - params.t_P) * thrust, zero, zero], axis=-1)
+    return stack_last([(1.0 - params.t_P) * thrust, zero, zero], xp)
 
 
 def rudder_normal_force(z, c, params: MmgParams):
@@ -142,9 +142,9 @@ def rudder(z, c, params: MmgParams):
     delta = c[..., 1] + params.delta_0
     f_n = rudder_normal_force(z, c, params)
     lever = (params.x_R + params.a_H * params.x_H) * params.L_pp
-    return xp.stack([-(1.0 - params.t_R) * f_n * xp.sin(delta),
-                     -(1.0 + params.a_H) * f_n * xp.cos(delta),
-                     -lever * f_n * xp.cos(delta)], axis=-1)
+    return stack_last([-(1.0 - params.t_R) * f_n * xp.sin(delta),
+                       -(1.0 + params.a_H) * f_n * xp.cos(delta),
+                       -lever * f_n * xp.cos(delta)], xp)
 
 
 def inertial(z, c, params: MmgParams):
@@ -157,13 +157,13 @@ def inertial(z, c, params: MmgParams):
     xp = namespace(z)
     u, v, r = z[..., 0], z[..., 1], z[..., 2]
     m, unit = params.mass, params.half_rho_l2d
-    return xp.stack([(m + params.m_y * unit) * v * r + params.x_G * m * r * r,
-                     -(m + params.m_x * unit) * u * r,
-                     -params.x_G * m * u * r], axis=-1)
+    return stack_last([(m + params.m_y * unit) * v * r + params.x_G * m * r * r,
+                       -(m + params.m_x * unit) * u * r,
+                       -params.x_G * m * u * r], xp)
 
 
 def bias(z, c, params: MmgParams):
     """Return the constant forces [X_0, Y_0, N_0] (..., 3), e.g. a diagnosed asymmetry."""
     xp = namespace(z)
     ones = xp.ones_like(z[..., 0])
-    return xp.stack([params.X_0 * ones, params.Y_0 * ones, params.N_0 * ones], axis=-1)
+    return stack_last([params.X_0 * ones, params.Y_0 * ones, params.N_0 * ones], xp)

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from vessel_physics.arrays import namespace
+from vessel_physics.arrays import namespace, stack_last
 from vessel_physics.errors import ConfigError
 from vessel_physics.family import Family, Term, term_registry
 from vessel_physics.integrator import attitude_rates
@@ -150,7 +150,7 @@ class Multirotor(Family):
         phi_rate, theta_rate, _ = attitude_rates(z[..., 3], z[..., 4], z[..., 5], z[..., 6],
                                                  z[..., 7])
         xp = namespace(z)
-        return xp.stack([phi_rate, theta_rate], axis=-1)
+        return stack_last([phi_rate, theta_rate], xp)
 
     def controls_of(self, vessel, params):
         """Return the vessel's columns of the rotors' actuators, in the file's order."""

@@ -23,7 +23,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from vessel_physics.arrays import constant, namespace
+from vessel_physics.arrays import constant, namespace, stack_last
 from vessel_physics.family import unit_force
 from vessel_physics.multirotor.params import SPIN_SIGN, MultirotorParams
 
@@ -41,8 +41,7 @@ def _wrench(like, fx=0.0, fy=0.0, fz=0.0, mx=0.0, my=0.0, mz=0.0):
                 out[..., i] = part
         return out
     zero = xp.zeros_like(like)
-    return xp.stack([zero + fx, zero + fy, zero + fz, zero + mx, zero + my, zero + mz],
-                    axis=-1)
+    return stack_last([zero + fx, zero + fy, zero + fz, zero + mx, zero + my, zero + mz], xp)
 
 
 def _rotor_wrench(n, fx=None, fy=None, fz=None, mx=None, my=None, mz=None):

@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 
 from vessel_physics.apparent import apparent_wind as relative_air
-from vessel_physics.arrays import constant, namespace
+from vessel_physics.arrays import constant, namespace, stack_last
 from vessel_physics.family import one_dof, unit_force
 from vessel_physics.patrol.forces import DOFS, propulsion, unit_thrust
 from vessel_physics.patrol.params import PatrolParams
@@ -156,9 +156,8 @@ def propeller_asymmetry(z, c, params: PatrolParams):
     fx, fy = thrust * xp.cos(delta), thrust * xp.sin(delta)
     dx = fx[..., 0] - fx[..., 1]
     dy = fy[..., 0] - fy[..., 1]
-    return xp.stack([dx, dy, -params.prop_lz * dy,
-                     params.prop_lx * dy + params.prop_ly * (fx[..., 0] + fx[..., 1])],
-                    axis=-1)
+    return stack_last([dx, dy, -params.prop_lz * dy,
+                       params.prop_lx * dy + params.prop_ly * (fx[..., 0] + fx[..., 1])], xp)
 
 
 __all__ = ['apparent_wind', 'propeller_asymmetry', 'relative_wind_roll',

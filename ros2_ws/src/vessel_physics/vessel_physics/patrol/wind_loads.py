@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from vessel_physics.apparent import RHO_AIR
-from vessel_physics.arrays import constant, namespace
+from vessel_physics.arrays import constant, namespace, stack_last
 from vessel_physics.patrol.params import PatrolParams
 
 ISHERWOOD_CSV = Path(__file__).resolve().parent / 'data' / 'isherwood1972.csv'
@@ -112,6 +112,6 @@ def wind_force(z, c, params: PatrolParams):
     x_force = q * coef[..., 0] * params.AF
     y_force = -q * coef[..., 1] * params.AL * side
     n_moment = -q * coef[..., 2] * params.AL * params.Loa * side
-    return xp.stack([x_force, y_force, params.wind_height * y_force, n_moment], axis=-1)
+    return stack_last([x_force, y_force, params.wind_height * y_force, n_moment], xp)
 
 
