@@ -42,7 +42,7 @@ if [ "${1:-}" = "--slow" ]; then
   longest=15
   # The slow integration checks wait on real-time clocks most of the time (one core's
   # worth of CPU over their 8.4 min at two files at a time): three at a time, the longest
-  # waits first (tests/conftest.py), took 5.8 min with the same durations per check.
+  # waits first (tests/conftest.py), took 6.3 min, each check passing.
   live=3
   live_dist=(--dist loadfile --no-loadscope-reorder)
 else
