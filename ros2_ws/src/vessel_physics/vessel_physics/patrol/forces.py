@@ -142,15 +142,24 @@ def hull_damping_features(z):
 _ABS, _ONE = len(Z_COLUMNS), 2 * len(Z_COLUMNS)
 
 
-def _factor_columns(name: str) -> tuple[int, int, int]:
+def _column(factor: str) -> int:
+    """Column of a factor ('u', '|u|' or '1') in [z, |z|, 1]."""
+    if factor == '1':
+        return _ONE
+    if factor.startswith('|'):
+        return _ABS + Z_COLUMNS.index(factor.strip('|'))
+    return Z_COLUMNS.index(factor)
+
+
+def _factor_columns(name: str) -> tuple[int, ...]:
+    """Columns (a, b, c) of a feature's factors, e.g. 'phi|uv|' -> |u|, |v|, phi."""
     factors = re.findall(r'\|[a-z]+\||phi|[a-z]', name)
     group = [f for f in factors if len(f) == 4]          # |xy|: its product comes first
     if group:
         factors = [f'|{group[0][1]}|', f'|{group[0][2]}|'] + [f for f in factors
                                                               if f not in group]
     factors += ['1'] * (3 - len(factors))
-    return tuple(_ONE if f == '1' else _ABS + Z_COLUMNS.index(f.strip('|'))
-                 if f.startswith('|') else Z_COLUMNS.index(f) for f in factors)
+    return tuple(_column(f) for f in factors)
 
 
 _FACTOR_COLUMNS = tuple(np.array(k) for k in zip(*map(_factor_columns,
