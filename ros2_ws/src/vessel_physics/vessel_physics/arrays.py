@@ -37,8 +37,8 @@ def stack_last(parts, xp):
     Stack equal-shaped arrays along a new last axis, as ``xp.stack(parts, axis=-1)``.
 
     The force terms build their (..., n_dof) results this way on every RK4 stage: on
-    numpy, one allocation and a copy per part take about a third of ``np.stack``'s time
-    on the few runs a simulator steps, with the same values.
+    numpy, one allocation and a copy per part take about half ``np.stack``'s time on the
+    few runs a simulator steps (1.6 against 3.1 us for four parts), with the same values.
     """
     if xp is not np:
         return xp.stack(parts, axis=-1)

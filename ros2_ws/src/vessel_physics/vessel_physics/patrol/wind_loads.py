@@ -77,7 +77,7 @@ def interpolate_coefficients(abs_gamma, params: PatrolParams):
         # Same piecewise-linear interpolation, one call per coefficient (the hot loop).
         table = isherwood_coefficients(params)
         deg = abs_gamma * (180.0 / math.pi)
-        return np.stack([np.interp(deg, NODES_DEG, table[:, j]) for j in range(3)], axis=-1)
+        return stack_last([np.interp(deg, NODES_DEG, table[:, j]) for j in range(3)], np)
     table = constant(isherwood_coefficients(params), abs_gamma, xp)
     pos = xp.clip(abs_gamma * (180.0 / math.pi / ANGLE_STEP_DEG), 0.0, N_NODES - 1.0)
     index = xp.clip(xp.floor(pos), 0.0, N_NODES - 2.0)
