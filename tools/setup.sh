@@ -11,8 +11,9 @@
 #   (`test`: everything `make test` needs; the workspace build and the test-only tools,
 #   independent of each other, are made at the same time; `bench`: the bench-only
 #   environment of peer models, .venv-bench, from requirements/bench.txt: never part of
-#   the product, nor of `all` or `test`; `gpu`: jax's CUDA build for forecasts on an
-#   NVIDIA GPU, optional, on a machine with its driver)
+#   the product nor of `all`, but of `test`, whose peer adapters' checks run in it;
+#   `gpu`: jax's CUDA build for forecasts on an NVIDIA GPU, optional, on a machine with
+#   its driver)
 # Environment: PYTHON (interpreter to use), VENV (default .venv at the repo root),
 #   ROSTOOLS (default .venv-rostools at the repo root), BENCH (default .venv-bench).
 # Each failure ends with one line starting "setup: error:".
@@ -336,6 +337,11 @@ both() {
   return "$rc"
 }
 
+# The tests' own interpreters, beside the workspace build: the ros2 CLI and launch, and
+# the peers the bench-only adapters' checks run (without it they skip, and CI would
+# never run them).
+test_tools() { stage_rostools; stage_bench; }
+
 main() {
   local stage="${1:-all}"
   case "$stage" in
@@ -345,7 +351,7 @@ main() {
     fixups) stage_venv; stage_deps; stage_fixups ;;
     build|all) stage_venv; stage_deps; stage_fixups; stage_build ;;
     rostools) stage_venv; stage_deps; stage_fixups; stage_rostools ;;
-    test) stage_venv; stage_deps; stage_fixups; both stage_build stage_rostools ;;
+    test) stage_venv; stage_deps; stage_fixups; both stage_build test_tools ;;
     bench) stage_bench ;;
     gpu) stage_gpu ;;
     lock) stage_lock ;;
