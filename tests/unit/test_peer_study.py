@@ -1,5 +1,6 @@
 """hybrid_models.studies.peers: problems from our splits, adapters run, answers scored as ours."""
 
+import json
 from pathlib import Path
 import shutil
 import sys
@@ -10,7 +11,7 @@ import pytest
 
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.metrics import forecast_metrics
-from hybrid_models.studies import peers
+from hybrid_models.studies import peers, table3
 from vessel_datasets.format import write_dataset
 from vessel_description import load_vessel
 
@@ -102,3 +103,23 @@ def test_a_failing_peer_is_said_in_its_own_line(setup, tmp_path):
     with pytest.raises(peers.PeerStudyError, match='unknown peer'):
         peers.study(None, tmp_path / 'out', ['arx'], [0], None, Path(sys.executable), root,
                     dataset=ds)
+
+
+def test_a_table3_study_is_one_fold_of_its_dataset_with_the_target_it_forecast(setup,
+                                                                               tmp_path):
+    # reproduce_table3 describes its target in words; the problems must take the
+    # windows' target it forecast (table3.TARGET), not fail on the description.
+    _, ds, root = setup
+    study = tmp_path / 'table3'
+    study.mkdir()
+    protocol = {'window': 20, 'horizon': 30, 'stride': 7,
+                'target': 'true where simulated, else measured', 'seeds': [0]}
+    (study / 'results.json').write_text(json.dumps(
+        {'dataset': {'path': str(ds)}, 'protocol': protocol, 'rows': []}))
+    problems, result = peers.write_problems(study, tmp_path / 'work', [0], root)
+    assert result['protocol']['target'] == table3.TARGET
+    assert [p.index for p in problems] == [0]
+    vessel = load_vessel('snuboat')
+    expected = forecast_windows(load_runs(ds, 'test', vessel), 20, 30, 7, 'measured')
+    assert problems[0].truth.shape == (len(expected.z_target), 30, 3)
+    np.testing.assert_array_equal(problems[0].truth, expected.z_target)

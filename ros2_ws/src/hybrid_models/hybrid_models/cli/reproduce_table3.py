@@ -123,8 +123,7 @@ def main(argv=None) -> int:
               f"Table 2 is the vessels' (reproduce_table2)", file=sys.stderr)
         return 2
     runs = load_runs(args.dataset, 'test', spec)
-    # Noise-free targets where the dataset has them (simulated), else the measured ones.
-    windows = test_windows(runs, window, horizon, stride, 'true')
+    windows = test_windows(runs, window, horizon, stride, table3.TARGET)
     truth = table3.test_truth(args.dataset, windows)
     print(f'{len(windows)} forecasts of {horizon} steps on {len(runs)} test runs',
           file=sys.stderr)

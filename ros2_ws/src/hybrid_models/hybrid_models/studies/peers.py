@@ -29,6 +29,7 @@ from hybrid_models.checkpoint import CheckpointError, read_header
 from hybrid_models.data import evaluation_protocol, forecast_windows, load_runs
 from hybrid_models.evaluation import seed_row
 from hybrid_models.metrics import forecast_metrics
+from hybrid_models.studies import table3
 from hybrid_models.studies.crossval import MODEL_FILE, Fold, read_study, run_dir
 from vessel_datasets.format import read_dataset
 
@@ -101,6 +102,8 @@ def study_folds(study: Path, dataset: Path | None = None) -> tuple[list, dict]:
         raise PeerStudyError(f'{path} is neither a crossval nor a Table 3 study')
     ds = read_dataset(dataset or result['dataset']['path'])
     split = ds.manifest['split']
+    # Its protocol describes the target in words; its test windows took table3.TARGET.
+    result = {**result, 'protocol': {**result['protocol'], 'target': table3.TARGET}}
     return [Fold(0, ds.root, *(tuple(split[k]) for k in ('train', 'val', 'test')))], result
 
 

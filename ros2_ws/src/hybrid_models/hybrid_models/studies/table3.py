@@ -38,6 +38,9 @@ PAPER_NAME = {'minq': 'MinQ', 'lin': 'Lin', 'qua': 'Qua', 'minq+lin': 'MinQ+Lin'
               'minq+qua': 'MinQ+Qua'}
 # The paper's columns: velocities over ground (inertial frame) and body rates.
 PAPER_STATES = ('vx', 'vy', 'vz', 'p', 'q', 'r')
+# The test windows' target (``data.forecast_windows``): a run's noise-free states where
+# the dataset has them, else its measured ones (module docstring, "Ground truth").
+TARGET = 'true'
 PAPER_HEAD = ("x' [m/s]", "y' [m/s]", "z' [m/s]", 'p [rad/s]', 'q [rad/s]', 'r [rad/s]')
 # Baier et al., Table 3 (Mohajerin & Waslander's indoor flights; all hybrids 2P): RMSE of
 # x', y', z' (m/s), p, q, r (rad/s) and the trajectory error (m).
