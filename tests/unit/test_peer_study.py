@@ -89,6 +89,7 @@ def test_a_peer_is_scored_on_our_windows_as_our_models_are(setup, tmp_path):
         assert not any(k.startswith('test_z_target') for k in f.files)
     table = (out / 'table.md').read_text()
     assert '| peer: NARX (SysIdentPy) |' in table and '| 1.0 ± 0.0 |' in table
+    assert 'fold 0 (' not in table     # one fold, nothing diverged: no table per fold
     # The same problem and adapter: kept, not run again.
     peers.study(None, out, ['narx'], [0, 1], None, Path(sys.executable), root, dataset=ds,
                 say=said.append)
@@ -123,3 +124,26 @@ def test_a_table3_study_is_one_fold_of_its_dataset_with_the_target_it_forecast(s
     expected = forecast_windows(load_runs(ds, 'test', vessel), 20, 30, 7, 'measured')
     assert problems[0].truth.shape == (len(expected.z_target), 30, 3)
     np.testing.assert_array_equal(problems[0].truth, expected.z_target)
+
+
+# A stand-in adapter whose first test forecast diverges (NaN from its third step).
+DIVERGES_ONCE = HOLD.replace("    return {'pred': pred,", "    pred[:, 0, 2:] = np.nan\n"
+                             "    return {'pred': pred,")
+
+
+def test_one_diverged_forecast_is_counted_not_left_to_hide_the_others(setup, tmp_path):
+    vessel, ds, root = setup
+    (root / 'offline' / 'peers' / 'narx.py').write_text(DIVERGES_ONCE)
+    out = tmp_path / 'out'
+    summary = peers.study(None, out, ['narx'], [0], None, Path(sys.executable), root,
+                          dataset=ds, say=lambda m: None)
+    row = summary['rows'][0]
+    assert row['metrics']['diverged'] and row['metrics']['trajectory']['mean'] is None
+    fold = row['per_fold'][0]
+    assert fold['diverged'] == [1]
+    window, horizon, stride = evaluation_protocol(vessel)
+    windows = forecast_windows(load_runs(ds, 'test', vessel), window, horizon, stride, 'true')
+    hold = np.repeat(windows.z_window[1:, -1:], horizon, axis=1)
+    expected = forecast_metrics(hold, windows.z_target[1:], vessel)
+    assert fold['final'] == [pytest.approx(expected['trajectory']['final_mean'])]
+    assert '(1 diverged)' in (out / 'table.md').read_text()

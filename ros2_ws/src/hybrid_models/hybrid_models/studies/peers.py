@@ -187,9 +187,9 @@ def peer_row(peer: str, problems: list[FoldProblem], answers: list[Path], spec, 
     row = seed_row(label, metrics) if n_seeds > 1 else {
         'label': label, 'seeds': 1, 'metrics': metrics[0], 'spread': None}
     row['per_seed_metrics'] = metrics
-    if len(problems) > 1:   # each fold alone (a kind of manoeuvre held out, say)
-        row['per_fold'] = [_fold_figures(p, a, spec) for p, a in zip(problems, read,
-                                                                     strict=True)]
+    # Each fold alone (a kind of manoeuvre held out, say), its diverged forecasts counted:
+    # one forecast of thousands that diverges makes the pooled row "diverged".
+    row['per_fold'] = [_fold_figures(p, a, spec) for p, a in zip(problems, read, strict=True)]
     row['peer'] = peer
     row['fit_seconds'] = [[float(x) for x in a['fit_seconds']] for a in read]
     row['forecast_seconds'] = [[float(x) for x in a['forecast_seconds']] for a in read]
@@ -211,9 +211,14 @@ def _fold_figures(problem: FoldProblem, answer: dict, spec) -> dict:
 
 
 def fold_table(summary: dict) -> str:
-    """Each peer per fold: error at the horizon (m), mean ± sd over seeds, diverged."""
+    """
+    Each peer per fold: error at the horizon (m), mean ± sd over seeds, diverged.
+
+    Empty for a single fold where no forecast diverged (the pooled table says it all).
+    """
     peers_rows = [r for r in summary['rows'] if r.get('per_fold')]
-    if not peers_rows:
+    diverged = any(sum(f['diverged']) for r in peers_rows for f in r['per_fold'])
+    if not peers_rows or (len(summary['folds']) < 2 and not diverged):
         return ''
     folds = summary['folds']
     lines = ['| peer | ' + ' | '.join(f'fold {i} ({n} forecasts): at the horizon [m]'
@@ -297,8 +302,8 @@ def study(study_dir: Path | None, out: Path, peers: list[str], seeds: list[int],
                'state_names': list(spec.state_names), 'rows': rows + ours,
                'peers': peers, 'quick': quick, 'options': options or {}}
     (out / 'results.json').write_text(json.dumps(summary, indent=1))
-    (out / 'table.md').write_text(table(summary) + ('\n' + fold_table(summary)
-                                                    if len(problems) > 1 else ''))
+    folds_table = fold_table(summary)
+    (out / 'table.md').write_text(table(summary) + ('\n' + folds_table if folds_table else ''))
     return summary
 
 
