@@ -80,14 +80,16 @@ fi
 if has nanodrone; then
   # The Crazyflie's real flights under the paper's protocol (12/2/6 flights, 0.5 s
   # window, 1 s horizon at 100 Hz). Our rows are Table 3's (docs/results/nanodrone/run.sh
-  # WORK paper) when its results are there; else the peers alone.
+  # WORK paper) when its results are there; else the peers alone. deepsysid at its
+  # defaults (no grid) and an eighth of its epochs, as on the by-kind folds.
   ND="$WORK/nanodrone"
   docs/results/nanodrone/run.sh "$ND" convert
   if [ -f docs/results/nanodrone/paper/results.json ]; then
     peers nanodrone_paper 'Crazyflie 2.1 Brushless, real flights (paper protocol)' 5 \
-      '--epochs-scale 0.125' --study docs/results/nanodrone/paper --dataset "$ND/paper_ds"
+      '--quick --epochs-scale 0.125' --study docs/results/nanodrone/paper \
+      --dataset "$ND/paper_ds"
   else
     peers nanodrone_paper 'Crazyflie 2.1 Brushless, real flights (paper protocol)' 5 \
-      '--epochs-scale 0.125' --dataset "$ND/paper_ds"
+      '--quick --epochs-scale 0.125' --dataset "$ND/paper_ds"
   fi
 fi
