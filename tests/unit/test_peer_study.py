@@ -147,3 +147,13 @@ def test_one_diverged_forecast_is_counted_not_left_to_hide_the_others(setup, tmp
     expected = forecast_metrics(hold, windows.z_target[1:], vessel)
     assert fold['final'] == [pytest.approx(expected['trajectory']['final_mean'])]
     assert '(1 diverged)' in (out / 'table.md').read_text()
+
+
+@pytest.mark.parametrize('results', sorted((REPO / 'docs' / 'results' / 'peers').glob(
+    '*/results.json')), ids=lambda p: p.parent.name)
+def test_each_committed_peer_table_is_its_results_rendered(results):
+    # The tables docs/results/peers/README.md quotes are what their results.json holds.
+    summary = json.loads(results.read_text())
+    per_fold = peers.fold_table(summary)
+    rendered = peers.table(summary) + ('\n' + per_fold if per_fold else '')
+    assert rendered == (results.parent / 'table.md').read_text()
