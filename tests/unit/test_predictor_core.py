@@ -165,7 +165,8 @@ def test_a_plan_the_model_cannot_forecast_is_withheld_alone(run, monkeypatch):
         steps = 0 if w else run.vessel.horizon
         assert msg.horizon == steps and len(msg.hybrid) == steps * len(msg.state_names)
         assert np.isfinite(msg.hybrid).all() and msg.controls_assumed == Forecast.CONTROLS_PLAN
-    monkeypatch.setattr(core, 'withheld', lambda *args: 'non-finite values')
+    monkeypatch.setattr(core, 'withheld',
+                        lambda hybrid, arrays: ['non-finite values'] * len(hybrid))
     ok, why, out, withheld = core.what_if(plans[:2], 0.0, now)
     assert not ok and out == withheld == []
     assert why == 'every forecast withheld; plan 0: forecast withheld: non-finite values'

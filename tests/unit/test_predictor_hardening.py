@@ -143,6 +143,21 @@ def test_a_forecast_outside_the_limits_or_not_finite_is_withheld():
     assert forecast_problem(good, (np.full(900, np.nan),) * 3, BOAT) == 'non-finite values'
 
 
+def test_a_batch_is_judged_as_each_of_its_forecasts_alone():
+    from hybrid_predictor.plausibility import forecast_problem, forecast_problems
+
+    hybrid = np.tile([6.0, 0.1, 0.0, 0.01, 0.02], (5, 900, 1))
+    track = [np.zeros((5, 900)) for _ in range(3)]
+    hybrid[1, 500, 0] = 7e14                 # a state beyond its limits
+    hybrid[2, 10, 3] = np.nan                # a non-finite state
+    track[1][3, 899] = np.inf                # a non-finite track
+    hybrid[4, 0, 1] = -np.inf
+    alone = [forecast_problem(hybrid[i], tuple(a[i] for a in track), BOAT) for i in range(5)]
+    assert alone[0] is None and all(alone[1:])
+    assert forecast_problems(hybrid, tuple(track), BOAT) == alone
+    assert forecast_problems(hybrid, (*track, np.zeros(0)), BOAT) == alone   # no z
+
+
 QUAD_TOPICS = {
     'body_velocity': {'frame': 'flu', **{name: {'topic': '/quad/odom', 'field': field}
                                          for name, field in (

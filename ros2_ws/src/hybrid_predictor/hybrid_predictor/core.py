@@ -49,7 +49,7 @@ from .plans import (
     check_plan_message,
     plan_controls,
 )
-from .plausibility import forecast_problem
+from .plausibility import forecast_problems
 from .schedule import ForecastSchedule
 from .skill import LiveSkill, Settings
 
@@ -361,7 +361,7 @@ class PredictorCore:
         assumed = followed(plan) if future.follows_plan else Assumed()
         stale = future.why_not
         hybrid, physics, arrays = forecast(self.engine, self.spec, result, [future])
-        problem = self.withheld(hybrid[0], arrays, 0)
+        (problem,) = self.withheld(hybrid, arrays)
         if problem:
             with self.lock:
                 self.health.record_withheld(problem)
@@ -373,11 +373,10 @@ class PredictorCore:
                 hybrid, physics, self.step_bounds), time.monotonic())
         return Outcome(msg, '', stale)
 
-    def withheld(self, hybrid: np.ndarray, arrays, i: int) -> str | None:
-        """Return why forecast ``i`` (FRD ``hybrid`` (H, n), its published arrays) is withheld."""
-        z = arrays.z[i] if arrays.z is not None else np.zeros(0)
-        return forecast_problem(hybrid, (arrays.x[i], arrays.y[i], arrays.heading[i], z),
-                                self.spec)
+    def withheld(self, hybrid: np.ndarray, arrays) -> list[str | None]:
+        """Return why each forecast (FRD ``hybrid`` (B, H, n), its arrays) is withheld, or None."""
+        z = arrays.z if arrays.z is not None else np.zeros(0)
+        return forecast_problems(hybrid, (arrays.x, arrays.y, arrays.heading, z), self.spec)
 
     def score(self, result) -> None:
         """Give the skill tracker, through hindsight, the window's new measurements."""
@@ -437,7 +436,7 @@ class PredictorCore:
             hybrid, _, arrays = forecast(self.engine, self.spec, result, futures, stride)
         # Every step's states are checked; a non-finite track between the answer's steps
         # would carry on to its last step, which every answer holds.
-        withheld = [self.withheld(hybrid[i], arrays, i) or '' for i in range(len(plans))]
+        withheld = [why or '' for why in self.withheld(hybrid, arrays)]
         out = forecast_messages(self.served, result.t_end, arrays,
                                 [followed(plan) for plan in plans], stride)
         for msg, why in zip(out, withheld, strict=True):

@@ -146,3 +146,23 @@ def forecast_problem(hybrid: np.ndarray, track: tuple[np.ndarray, ...], vessel) 
         if not low <= worst <= high:
             return f'{name} reaches {worst:.6g}, outside the vessel limits [{low:g}, {high:g}]'
     return None
+
+
+def forecast_problems(hybrid: np.ndarray, track: tuple[np.ndarray, ...], vessel
+                      ) -> list[str | None]:
+    """
+    Return ``forecast_problem`` of each forecast of a batch, judged at once.
+
+    ``hybrid`` (B, horizon, n_state); ``track`` arrays (B, horizon), or an empty z. A
+    thousand plans of a what-if request are judged in one pass over the arrays; only
+    the forecasts withheld are looked at one by one, for the reason they are given.
+    """
+    low, high = (np.array([vessel.limits[n][k] for n in vessel.states]) for k in (0, 1))
+    # NaN fails both comparisons: a non-finite forecast is never judged fit here.
+    fit = ((hybrid >= low) & (hybrid <= high)).all(axis=(1, 2))
+    for a in track:
+        if a.size:
+            fit &= np.isfinite(a).all(axis=1)
+    return [None if ok else forecast_problem(hybrid[i], tuple(a[i] if a.size else a
+                                                                for a in track), vessel)
+            for i, ok in enumerate(fit)]
