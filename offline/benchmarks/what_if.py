@@ -40,7 +40,7 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
     from hybrid_predictor.forecasting import Future, forecast
     from hybrid_predictor.held_wind import holds_wind
     from hybrid_predictor.plan_message import control_plan
-    from hybrid_predictor.plans import check_plan_message, plan_controls
+    from hybrid_predictor.plans import check_plan_messages, plan_controls
     from hybrid_predictor.re_forecast import predictor_defaults
     from vessel_datasets.topic_map import topic_map_for
     from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
@@ -79,8 +79,7 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
     engine.warm_up(steps, window=engine.window, max_batch=plans)
     with core.lock:
         result = core.assemble(now)
-    matrices = [check_plan_message(r, steps, core.limits, index=i)
-                for i, r in enumerate(requests)]
+    matrices = check_plan_messages(requests, steps, core.limits)
     futures = [Future(plan_controls(x, result.controls[-1])[None], holds_wind(vessel, x),
                       True) for x in matrices]
     batch = np.concatenate([f.controls for f in futures])
@@ -93,8 +92,8 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
         'plans_withheld': sum(bool(w) for w in withheld),
         'answer_ms': _median_ms(lambda: core.what_if(requests, 0.0, now), repeats),
         'stages_ms': {
-            'plan checks': _median_ms(lambda: [check_plan_message(r, steps, core.limits)
-                                               for r in requests], repeats),
+            'plan checks': _median_ms(lambda: check_plan_messages(requests, steps,
+                                                                  core.limits), repeats),
             'forecast, wind held over the earth, frames and bands':
                 _median_ms(lambda: forecast(engine, vessel, result, futures), repeats),
             'Forecast messages': _median_ms(lambda: forecast_messages(

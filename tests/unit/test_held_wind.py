@@ -6,7 +6,7 @@ import pytest
 
 from hybrid_models.engine import Forecaster
 from hybrid_models.metrics import dead_reckoning, trajectory_errors
-from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind
+from hybrid_predictor.held_wind import forecast_holding_wind, holds_wind, holds_wind_each
 from hybrid_predictor.node import default_model_path
 from vessel_description import load_vessel
 from vessel_physics.simulation.config import load_simulation
@@ -24,6 +24,12 @@ def test_which_plans_hold_the_wind():
     rows[:, 3:] = [2.0, 1.0, 0.0]
     assert not holds_wind(BOAT, rows)
     assert not holds_wind(load_vessel('kvlcc2_hsva'), None)   # no wind among its controls
+    # A request's plans at once, as each alone.
+    held = rows.copy()
+    held[:, 3:] = np.nan
+    assert holds_wind_each(BOAT, np.stack([rows, held, rows])).tolist() == [False, True, False]
+    kvlcc2 = load_vessel('kvlcc2_hsva')
+    assert not holds_wind_each(kvlcc2, np.full((2, 5, kvlcc2.n_control), np.nan)).any()
 
 
 @pytest.fixture(scope='module')

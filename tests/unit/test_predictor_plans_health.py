@@ -2,6 +2,7 @@
 
 import math
 import re
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,6 +15,7 @@ from hybrid_predictor.plans import (
     answer_stride,
     bound_hit_fraction,
     check_plan,
+    check_plan_messages,
     hold_latest,
     plan_controls,
     track,
@@ -79,7 +81,7 @@ def test_every_vessel_plans_in_its_own_controls(vessel):
         check_plan(ACTUATORS, ACTUATOR_UNITS, actuator_rows(), H, limits)
 
 
-@pytest.mark.parametrize('change, message', [
+MALFORMED = [
     ({'names': []}, "no control_names; vessel 'patrol_boat' takes n [rad/s], delta_port"),
     ({'names': ['shaft_speed', 'delta_port', 'delta_stbd']},
      "['shaft_speed'] not among the controls of vessel 'patrol_boat'"),
@@ -108,11 +110,44 @@ def test_every_vessel_plans_in_its_own_controls(vessel):
       'units': ACTUATOR_UNITS + ['m/s', '1', '1'],
       'values': np.column_stack([actuator_rows(), np.tile([5.0, 0.5, 0.5], (H, 1))])},
      '(wind_dir_cos, wind_dir_sin)[0] = (0.5, 0.5) is not a unit direction'),
-])
+]
+
+
+@pytest.mark.parametrize('change, message', MALFORMED)
 def test_malformed_plans_are_refused_in_one_line_with_the_reason(change, message):
     with pytest.raises(PlanError, match=re.escape(message)) as refused:
         planned(**change, index=3)
     assert str(refused.value).startswith('plan 3: ') and '\n' not in str(refused.value)
+
+
+def message(names=None, units=None, values=None, step_period=0.0):
+    """Return a ControlPlan-like message (the fields check_plan_message reads)."""
+    values = actuator_rows() if values is None else values
+    return SimpleNamespace(control_names=ACTUATORS if names is None else names,
+                           control_units=ACTUATOR_UNITS if units is None else units,
+                           values=values if isinstance(values, str) else
+                           np.asarray(values, float).ravel(), step_period=step_period)
+
+
+def test_a_request_of_many_plans_is_checked_as_each_plan_alone():
+    rng = np.random.default_rng(0)
+    plans = [message(values=actuator_rows(rng.uniform(0, 100))) for _ in range(6)]
+    coarse = [message(values=actuator_rows(60.0)[:3], step_period=2 * PATROL.dt)] * 2
+    for batch in (plans, coarse, plans[:3] + coarse):   # shared and mixed layouts
+        alone = [check_plan(p.control_names, p.control_units, p.values, H, LIMITS,
+                            step_period=p.step_period) for p in batch]
+        for got, want in zip(check_plan_messages(batch, H, LIMITS), alone, strict=True):
+            np.testing.assert_array_equal(got, want)
+
+
+@pytest.mark.parametrize(('change', 'message_'), MALFORMED)
+def test_a_request_is_refused_for_its_first_malformed_plan_in_its_line(change, message_):
+    plans = [message() for _ in range(4)]
+    plans[2] = message(**change)
+    plans[3] = message(values=actuator_rows(150.0))   # also malformed, but later
+    with pytest.raises(PlanError, match=re.escape(message_)) as refused:
+        check_plan_messages(plans, H, LIMITS)
+    assert str(refused.value).startswith('plan 2: ')
 
 
 def test_a_coarse_plan_holds_each_row_for_its_step_period():

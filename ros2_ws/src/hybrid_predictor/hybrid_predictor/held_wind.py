@@ -52,5 +52,13 @@ def forecast_holding_wind(engine: Forecaster, states: np.ndarray, controls: np.n
 
 def holds_wind(spec, rows: np.ndarray | None) -> bool:
     """Return whether a forecast following plan ``rows`` (None: no plan) holds the wind."""
+    return wind_direction_columns(spec) is not None and (
+        rows is None or bool(holds_wind_each(spec, rows[None])[0]))
+
+
+def holds_wind_each(spec, plans: np.ndarray) -> np.ndarray:
+    """Return (B,) whether each checked plan of ``plans`` (B, H, n_control) holds the wind."""
     columns = wind_direction_columns(spec)
-    return columns is not None and (rows is None or bool(np.isnan(rows[:, columns[0]]).all()))
+    if columns is None:
+        return np.zeros(len(plans), bool)
+    return np.isnan(plans[:, :, columns[0]]).all(axis=1)   # the plan leaves the wind out

@@ -243,6 +243,44 @@ def check_plan_message(plan, horizon: int, limits: PlanLimits, index: int = 0,
                       step_period=getattr(plan, 'step_period', 0.0))
 
 
+def _header(plan) -> tuple:
+    """Return what a ControlPlan's matrix layout depends on: columns, units, step period."""
+    return (tuple(plan.control_names), tuple(plan.control_units),
+            getattr(plan, 'step_period', 0.0), len(plan.values))
+
+
+def check_plan_messages(plans, horizon: int, limits: PlanLimits) -> list[np.ndarray]:
+    """
+    Return ``check_plan_message``'s matrix of every plan of a request, or raise its PlanError.
+
+    Plans that share their columns, units, step period and length (a planner's thousand
+    candidates) are checked as one stack: the first plan alone (columns, units, length),
+    then every value of all of them at once; the first plan found at fault is checked
+    alone again, which raises the line naming it, as checking them one by one would.
+    """
+    if len({_header(p) for p in plans}) != 1:
+        return [check_plan_message(p, horizon, limits, index=i) for i, p in enumerate(plans)]
+    check_plan_message(plans[0], horizon, limits)
+    names = list(plans[0].control_names)
+    try:
+        rows = np.stack([np.asarray(p.values, dtype=float) for p in plans]).reshape(
+            len(plans), -1, len(names))
+    except (TypeError, ValueError):   # values that are no numbers: said plan by plan
+        return [check_plan_message(p, horizon, limits, index=i) for i, p in enumerate(plans)]
+    low, high = (np.array([limits.ranges[n][k] for n in names]) for k in (0, 1))
+    fit = ((rows >= low) & (rows <= high)).all(axis=(1, 2))   # NaN fails both
+    for cos_name, sin_name in limits.directions:
+        if cos_name in names:
+            c, s = (rows[..., names.index(n)] for n in (cos_name, sin_name))
+            fit &= (np.abs(c * c + s * s - 1.0) <= DIRECTION_TOLERANCE).all(axis=1)
+    for i in np.flatnonzero(~fit):
+        check_plan_message(plans[i], horizon, limits, index=int(i))   # raises its line
+    matrix = np.full((len(plans), rows.shape[1], len(limits.names)), np.nan)
+    matrix[..., [limits.names.index(n) for n in names]] = rows
+    hold, _ = plan_length(horizon, getattr(plans[0], 'step_period', 0.0), limits.dt)
+    return list(np.repeat(matrix, hold, axis=1)[:, :horizon])   # one row per forecast step
+
+
 def plan_rows(matrix: np.ndarray, plan_start: float, t_end: float, dt: float,
               horizon: int, timeout: float) -> tuple[np.ndarray | None, str]:
     """
