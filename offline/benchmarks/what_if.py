@@ -37,10 +37,9 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.core import PredictorCore
     from hybrid_predictor.forecast_messages import followed, forecast_messages
-    from hybrid_predictor.forecasting import Future, forecast
-    from hybrid_predictor.held_wind import holds_wind
+    from hybrid_predictor.forecasting import forecast, plan_futures
     from hybrid_predictor.plan_message import control_plan
-    from hybrid_predictor.plans import check_plan_messages, plan_controls
+    from hybrid_predictor.plans import check_plan_messages
     from hybrid_predictor.re_forecast import predictor_defaults
     from vessel_datasets.topic_map import topic_map_for
     from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
@@ -80,8 +79,7 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
     with core.lock:
         result = core.assemble(now)
     matrices = check_plan_messages(requests, steps, core.limits)
-    futures = [Future(plan_controls(x, result.controls[-1])[None], holds_wind(vessel, x),
-                      True) for x in matrices]
+    futures = plan_futures(vessel, matrices, result.controls[-1])
     batch = np.concatenate([f.controls for f in futures])
     ok, why, _, withheld = core.what_if(requests, 0.0, now)
     if not ok:

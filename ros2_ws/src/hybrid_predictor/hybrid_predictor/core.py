@@ -36,9 +36,8 @@ from vessel_physics import frames
 from vessel_ros_bridge.messages import seconds_from_stamp
 
 from .forecast_messages import Assumed, Served, followed, forecast_messages, no_steps
-from .forecasting import Future, forecast, future_controls, published
+from .forecasting import forecast, future_controls, plan_futures, published
 from .health import OK, WARN, Health
-from .held_wind import holds_wind_each
 from .hindsight import Hindsight, Remade, applied_future
 from .input_window import InputWindow
 from .plans import (
@@ -48,7 +47,6 @@ from .plans import (
     bound_hit_fraction,
     check_plan_message,
     check_plan_messages,
-    plan_controls,
 )
 from .plausibility import forecast_problems
 from .schedule import ForecastSchedule
@@ -422,17 +420,14 @@ class PredictorCore:
             return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', [], []
         try:   # every plan, as a whole, before any window or model work
             stride = answer_stride(answer_period, self.spec.dt, self.horizon)
-            matrices = check_plan_messages(plans, self.horizon, self.limits)
+            matrices = check_plan_messages(plans, self.horizon, self.limits)   # (B, H, m)
         except PlanError as exc:
             return False, str(exc), [], []
         with self.lock:
             result = self.assemble(now)
         if not result.ready:
             return False, f'no forecast: {result.reason}', [], []
-        stacked = np.stack(matrices)   # one pass over every plan, not one per plan
-        controls = plan_controls(stacked, result.controls[-1])
-        futures = [Future(controls[i:i + 1], bool(held), True)
-                   for i, held in enumerate(holds_wind_each(self.spec, stacked))]
+        futures = plan_futures(self.spec, matrices, result.controls[-1])
         with self.batch_lock:
             hybrid, _, arrays = forecast(self.engine, self.spec, result, futures, stride)
         # Every step's states are checked; a non-finite track between the answer's steps

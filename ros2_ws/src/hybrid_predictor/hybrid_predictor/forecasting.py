@@ -18,7 +18,7 @@ import numpy as np
 from hybrid_models.engine import Forecaster
 from vessel_physics import frames
 
-from .held_wind import forecast_holding_wind, holds_wind
+from .held_wind import forecast_holding_wind, holds_wind, holds_wind_each
 from .plans import answer_steps, hold_latest, plan_controls, plan_rows, track
 
 
@@ -48,6 +48,17 @@ def future_controls(spec, result, horizon: int, plan: np.ndarray | None = None,
         if rows is not None:
             return Future(plan_controls(rows, latest)[None], holds_wind(spec, rows), True)
     return Future(hold_latest(latest, horizon), holds_wind(spec, None), False, why)
+
+
+def plan_futures(spec, matrices: np.ndarray, latest: np.ndarray) -> list[Future]:
+    """
+    Return the futures of a what-if request's checked plans (B, H, n_control), made at once.
+
+    ``latest`` holds the columns a plan leaves out (``plans.plan_controls``).
+    """
+    controls = plan_controls(matrices, latest)
+    return [Future(controls[i:i + 1], bool(held), True)
+            for i, held in enumerate(holds_wind_each(spec, matrices))]
 
 
 @dataclass(frozen=True)

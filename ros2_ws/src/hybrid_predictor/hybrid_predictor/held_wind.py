@@ -52,8 +52,9 @@ def forecast_holding_wind(engine: Forecaster, states: np.ndarray, controls: np.n
 
 def holds_wind(spec, rows: np.ndarray | None) -> bool:
     """Return whether a forecast following plan ``rows`` (None: no plan) holds the wind."""
-    return wind_direction_columns(spec) is not None and (
-        rows is None or bool(holds_wind_each(spec, rows[None])[0]))
+    if rows is None:
+        return wind_direction_columns(spec) is not None
+    return bool(holds_wind_each(spec, rows[None])[0])
 
 
 def holds_wind_each(spec, plans: np.ndarray) -> np.ndarray:

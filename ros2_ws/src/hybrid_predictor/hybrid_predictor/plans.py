@@ -201,7 +201,8 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
             raise PlanError(f'{where}: {steps} steps of {len(names)} controls, need {need}')
         raise PlanError(f'{where}: {steps} rows of {step_period:g} s, need {need} for '
                         f'{horizon} forecast steps of {limits.dt:g} s')
-    bad = np.argwhere(~np.isfinite(rows))
+    nonfinite, outside, directions = _value_faults(rows, names, limits)
+    bad = np.argwhere(nonfinite)
     if len(bad):
         k, j = bad[0]
         raise PlanError(f'{where}: {names[j]}[{k}] is {rows[k, j]}')
@@ -210,25 +211,47 @@ def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,
         if declared is None:
             raise PlanError(f'{where}: vessel {limits.vessel!r} declares no range for '
                             f'{name} (limits.{name} in its vessel file); leave it out')
-        low, high = declared
-        out = np.flatnonzero((rows[:, j] < low) | (rows[:, j] > high))
+        out = np.flatnonzero(outside[:, j])
         if len(out):
             k = out[0]
             raise PlanError(f'{where}: {name}[{k}] = {rows[k, j]:.6g} outside '
-                            f'[{low:.6g}, {high:.6g}] {units[j]}')
-    matrix = np.full((steps, len(limits.names)), np.nan)
-    matrix[:, [limits.names.index(n) for n in names]] = rows
+                            f'[{declared[0]:.6g}, {declared[1]:.6g}] {units[j]}')
+    for cos_name, sin_name, off_rows in directions:
+        off = np.flatnonzero(off_rows)
+        if len(off):
+            k = off[0]
+            c, s = (rows[k, names.index(n)] for n in (cos_name, sin_name))
+            raise PlanError(f'{where}: ({cos_name}, {sin_name})[{k}] = ({c:.6g}, '
+                            f'{s:.6g}) is not a unit direction')
+    matrix = np.repeat(_in_vessel_order(rows, names, limits), hold, axis=0)   # a row a step
+    return matrix[:horizon] if exact else matrix
+
+
+def _value_faults(rows: np.ndarray, names: list[str], limits: PlanLimits):
+    """
+    Return where plan rows (..., R, m) of columns ``names`` break the value rules.
+
+    (non-finite (..., R, m); outside the declared range (..., R, m), never in a column
+    without one; [(cos, sin, not a unit direction (..., R))] per direction given). The
+    one statement of the rules: ``check_plan`` names a plan's first fault from them,
+    ``check_plan_messages`` asks which plans of a stack have any.
+    """
+    low, high = np.array([limits.ranges[n] or (np.nan, np.nan) for n in names]).T
+    outside = (rows < low) | (rows > high)   # NaN, value or bound, is never outside
+    directions = []
     for cos_name, sin_name in limits.directions:
         if cos_name in names:
-            c = matrix[:, limits.names.index(cos_name)]
-            s = matrix[:, limits.names.index(sin_name)]
-            off = np.flatnonzero(np.abs(c * c + s * s - 1.0) > DIRECTION_TOLERANCE)
-            if len(off):
-                k = off[0]
-                raise PlanError(f'{where}: ({cos_name}, {sin_name})[{k}] = ({c[k]:.6g}, '
-                                f'{s[k]:.6g}) is not a unit direction')
-    matrix = np.repeat(matrix, hold, axis=0)   # one row per forecast step
-    return matrix[:horizon] if exact else matrix
+            c, s = (rows[..., names.index(n)] for n in (cos_name, sin_name))
+            directions.append((cos_name, sin_name,
+                               np.abs(c * c + s * s - 1.0) > DIRECTION_TOLERANCE))
+    return ~np.isfinite(rows), outside, directions
+
+
+def _in_vessel_order(rows: np.ndarray, names: list[str], limits: PlanLimits) -> np.ndarray:
+    """Return rows (..., R, m) of columns ``names`` in the vessel's controls, NaN elsewhere."""
+    matrix = np.full(rows.shape[:-1] + (len(limits.names),), np.nan)
+    matrix[..., [limits.names.index(n) for n in names]] = rows
+    return matrix
 
 
 def check_plan_message(plan, horizon: int, limits: PlanLimits, index: int = 0,
@@ -249,36 +272,39 @@ def _header(plan) -> tuple:
             getattr(plan, 'step_period', 0.0), len(plan.values))
 
 
-def check_plan_messages(plans, horizon: int, limits: PlanLimits) -> list[np.ndarray]:
+def check_plan_messages(plans, horizon: int, limits: PlanLimits) -> np.ndarray:
     """
-    Return ``check_plan_message``'s matrix of every plan of a request, or raise its PlanError.
+    Return ``check_plan_message``'s matrices of a request's plans (B, horizon, n_control).
+
+    Raise the PlanError of its first plan at fault.
 
     Plans that share their columns, units, step period and length (a planner's thousand
     candidates) are checked as one stack: the first plan alone (columns, units, length),
     then every value of all of them at once; the first plan found at fault is checked
     alone again, which raises the line naming it, as checking them one by one would.
     """
+    def one_by_one():
+        return np.stack([check_plan_message(p, horizon, limits, index=i)
+                         for i, p in enumerate(plans)])
+
     if len({_header(p) for p in plans}) != 1:
-        return [check_plan_message(p, horizon, limits, index=i) for i, p in enumerate(plans)]
+        return one_by_one()
     check_plan_message(plans[0], horizon, limits)
     names = list(plans[0].control_names)
     try:
         rows = np.stack([np.asarray(p.values, dtype=float) for p in plans]).reshape(
             len(plans), -1, len(names))
     except (TypeError, ValueError):   # values that are no numbers: said plan by plan
-        return [check_plan_message(p, horizon, limits, index=i) for i, p in enumerate(plans)]
-    low, high = (np.array([limits.ranges[n][k] for n in names]) for k in (0, 1))
-    fit = ((rows >= low) & (rows <= high)).all(axis=(1, 2))   # NaN fails both
-    for cos_name, sin_name in limits.directions:
-        if cos_name in names:
-            c, s = (rows[..., names.index(n)] for n in (cos_name, sin_name))
-            fit &= (np.abs(c * c + s * s - 1.0) <= DIRECTION_TOLERANCE).all(axis=1)
-    for i in np.flatnonzero(~fit):
+        return one_by_one()
+    nonfinite, outside, directions = _value_faults(rows, names, limits)
+    unfit = (nonfinite | outside).any(axis=(1, 2))
+    for *_, off in directions:
+        unfit |= off.any(axis=1)
+    for i in np.flatnonzero(unfit):
         check_plan_message(plans[i], horizon, limits, index=int(i))   # raises its line
-    matrix = np.full((len(plans), rows.shape[1], len(limits.names)), np.nan)
-    matrix[..., [limits.names.index(n) for n in names]] = rows
     hold, _ = plan_length(horizon, getattr(plans[0], 'step_period', 0.0), limits.dt)
-    return list(np.repeat(matrix, hold, axis=1)[:, :horizon])   # one row per forecast step
+    matrix = np.repeat(_in_vessel_order(rows, names, limits), hold, axis=1)   # a row a step
+    return matrix[:, :horizon]
 
 
 def plan_rows(matrix: np.ndarray, plan_start: float, t_end: float, dt: float,
