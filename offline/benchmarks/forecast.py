@@ -13,7 +13,8 @@ Forecast speed of the default model, all figures measured in one run.
 - start-up: the warm-up a starting predictor runs (every batch size compiled), in a
   new process with an empty compilation cache and in the next one that finds it filled;
 - rate: a vehicle at its own rate (the Crazyflie at 100 Hz, its shipped model), one
-  forecast per state message, idle and beside a busy core (``node_rate``);
+  forecast per state message, idle and beside a busy core, and the floor: the same
+  replay and receiver against a node that answers at once (``node_rate``);
 - what-if: a planner's request of 1,000 plans x 100 steps answered by the predictor's
   own code, stage by stage, without DDS (``what_if``);
 - gpu: the engine's single and batch figures on the GPU where jax sees one, and the
@@ -353,6 +354,8 @@ def run(args) -> dict:
         result['rate'] = {
             'idle': measure(rate_model, args.rate_vehicle, args.rate_samples),
             'busy_core': measure(rate_model, args.rate_vehicle, args.rate_samples, busy=True),
+            # The same replay and receiver against a node that answers at once.
+            'floor': measure(rate_model, args.rate_vehicle, args.rate_samples, stand_in=True),
             'simulator_node': simulator_cost(args.rate_vehicle, args.rate_samples)}
         if 'cpu_ms_per_period' in result['rate']['simulator_node']:
             result['rate_simulator_cpu_ms_per_period'] = \
@@ -360,6 +363,8 @@ def run(args) -> dict:
         for key in ('p99_ms', 'share_forecast_by_node'):
             if key in result['rate']['idle']:
                 result[f'rate_idle_{key}'] = result['rate']['idle'][key]
+        if 'p99_ms' in result['rate']['floor']:
+            result['rate_floor_p99_ms'] = result['rate']['floor']['p99_ms']
     met = {}
     for key, goal in GOALS.items():
         if key in result:

@@ -78,8 +78,13 @@ def busy_core() -> subprocess.Popen:
 
 
 def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
-            plans: bool = True) -> dict:
-    """Publish a window and ``samples`` states more at the vehicle's rate; time the forecasts."""
+            plans: bool = True, stand_in: bool = False) -> dict:
+    """
+    Publish a window and ``samples`` states more at the vehicle's rate; time the forecasts.
+
+    ``stand_in``: time ``stand_in.py`` instead of the predictor, a node that answers each
+    state at once with an empty Forecast: the floor of the same replay and receiver.
+    """
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -108,8 +113,10 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     spinner = busy_process = None
     logs = Path(tempfile.mkdtemp(prefix='bench_rate_'))
     with Children(logs) as children:
-        predictor = children.node('hybrid_predictor', 'predictor', '--log-level', 'warn', params={
-            'model_path': str(model), 'vessel': vehicle, 'forecast_period': 0.0})
+        predictor = children.start([sys.executable, str(Path(__file__).with_name(
+            'stand_in.py')), vehicle], 'predictor') if stand_in else children.node(
+            'hybrid_predictor', 'predictor', '--log-level', 'warn', params={
+                'model_path': str(model), 'vessel': vehicle, 'forecast_period': 0.0})
         rclpy.init(**rclpy_options())
         try:
             node = rclpy.create_node('bench_rate_client')
@@ -119,11 +126,16 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
             receiver = rclpy.create_node('bench_rate_receiver', namespace=DEFAULT_NAMESPACE)
             plan_pub = receiver.create_publisher(ControlPlan, PLAN_TOPIC, 10)
 
+            # Made before the run, as the replay makes each row's messages before it is
+            # due: what is timed is the node, not this process making messages.
+            plan_messages = [ControlPlan(
+                control_names=list(spec.control_names), control_units=list(
+                    spec.control_units), values=controls[
+                        k:k + spec.horizon + PLAN_MARGIN].ravel().tolist(),
+                step_period=spec.dt) for k in range(rows if plans else 0)]
+
             def send_plan(k: int, stamp: float) -> None:
-                steps = controls[k:k + spec.horizon + PLAN_MARGIN]
-                plan = ControlPlan(control_names=list(spec.control_names),
-                                   control_units=list(spec.control_units),
-                                   values=steps.ravel().tolist(), step_period=spec.dt)
+                plan = plan_messages[k]
                 plan.header.stamp = m.stamp_from_seconds(stamp)
                 plan_pub.publish(plan)
 
@@ -169,7 +181,7 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     out = {'vehicle': vehicle, 'rate_hz': spec.rate_hz, 'states_timed': len(stamps),
            'forecasts_received': int(len(delays)),
            'share_received': round(len(delays) / len(stamps), 3), 'busy_core': busy,
-           'plans': plans,
+           'plans': plans, 'stand_in': stand_in,
            'predictor_cpu_ms_per_state': round(cpu / rows * 1e3, 2)}
     counts = {k: int(health.get(k, 0)) for k in (
         'forecasts_published', 'forecasts_withheld', 'states_skipped_as_backlog')}
@@ -177,6 +189,10 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     # vehicle's limits: a multirotor's rotor speeds held for a second overturn it).
     out.update(predictor_counts=counts, share_forecast_by_node=round(
         (counts['forecasts_published'] + counts['forecasts_withheld']) / len(stamps), 3))
+    # The node's own view: a state's arrival in the node to its forecast made, over its
+    # last forecasts (health.latency_window); the rest of the delay is transport.
+    out['predictor_latency_ms'] = {k: float(health[f'forecast_latency_{k}_ms'])
+                                   for k in ('p50', 'p99') if f'forecast_latency_{k}_ms' in health}
     said = (logs / 'predictor.log').read_text(errors='replace').splitlines()
     out['predictor_warnings'] = sorted({line.split(': ', 1)[-1][:160] for line in said
                                         if 'WARN' in line or 'ERROR' in line})[:10]

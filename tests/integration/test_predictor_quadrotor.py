@@ -145,3 +145,21 @@ def test_the_predictor_forecasts_a_quadrotor_in_space_equal_to_its_offline_recom
     assert summary['compared'] == len(forecasts), summary
     assert summary['unequal_count'] <= late, (summary, late)
     assert summary['compared'] - late >= 10, (summary, late)
+
+
+@pytest.mark.slow   # two node processes timed at 100 Hz: about 35 s
+def test_the_rate_benchmark_times_the_predictor_and_its_floor(quad_model):
+    # offline/bench.py forecast's 100 Hz figures: the predictor, one forecast per state,
+    # and the floor of the same replay and receiver, a stand-in that answers at once.
+    from offline.benchmarks.node_rate import measure
+
+    floor = measure(quad_model, 'crazyflie_brushless', 60, stand_in=True)
+    assert floor['stand_in'] and floor['states_timed'] == 61, floor
+    assert floor['share_received'] == 1.0 and 0 < floor['p50_ms'] <= floor['p99_ms'], floor
+    served = measure(quad_model, 'crazyflie_brushless', 60)
+    counts = served['predictor_counts']
+    assert 0 < served['forecasts_received'] <= counts['forecasts_published'], served
+    assert counts['forecasts_published'] + counts['forecasts_withheld'] <= 61, served
+    assert set(served['predictor_latency_ms']) == {'p50', 'p99'}, served
+    assert not served['predictor_warnings'] or all(
+        'withheld' in w for w in served['predictor_warnings']), served

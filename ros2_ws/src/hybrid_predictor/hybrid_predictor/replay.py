@@ -41,18 +41,23 @@ class RunReplay:
 
         ``wait(seconds)`` is called while the next row is not due (spin an executor
         there); row k is stamped ``start + k / rate_hz`` seconds; ``before_row(k, stamp)``,
-        if given, is called just before its messages go (e.g. a controller's plan).
+        if given, is called just before its messages go (e.g. a controller's plan), which
+        are made before the row is due.
         """
         rate = rate_hz or self.topic_map.vessel.rate_hz
         began = time.monotonic()
         for k, row in enumerate(table.to_dict('records')):
+            stamp_s = start + k / rate
+            # Made before the row is due: at its time the messages are only published,
+            # as a sensor's driver sends what it has measured.
+            channels = channel_values(row, self.topic_map)
+            messages = [(topic, self.writer.message(topic, channels, stamp_from_seconds(
+                stamp_s))) for topic in self.writer.topics]
             while (due := k / rate - (time.monotonic() - began)) > 0:
                 wait(min(due, 0.001))
-            stamp_s = start + k / rate
             if before_row is not None:
                 before_row(k, stamp_s)
-            channels = channel_values(row, self.topic_map)
-            for topic in self.writer.topics:
-                msg = self.writer.message(topic, channels, stamp_from_seconds(stamp_s))
+            for topic, msg in messages:
                 self.publishers[topic].publish(msg)
-                self.sent.append((stamp_s, topic, self.readers[topic](msg)))
+            self.sent.extend((stamp_s, topic, self.readers[topic](msg))
+                             for topic, msg in messages)
