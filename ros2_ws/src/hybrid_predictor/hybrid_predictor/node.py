@@ -6,7 +6,8 @@ patrol boat's are ``/vessel/odom``, ``/vessel/actuators``, ``/vessel/wind``), wi
 message types it names, and optionally ``/vessel/control_plan``
 (hybrid_predictor_interfaces/ControlPlan).
 Outputs: ``/vessel/forecast`` (Forecast: hybrid forecast, its physical part, the
-LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path),
+LSTM's bound, the trajectory), ``/vessel/forecast/path`` (nav_msgs/Path, made while it
+has a subscriber),
 ``/vessel/forecast/skill`` (diagnostic_msgs/DiagnosticStatus: the live skill of the
 model, on windows forecast again with the inputs then applied as each scored step
 matures, ``hindsight`` and ``skill``) and ``/diagnostics`` (WARN when the vessel departs
@@ -15,18 +16,18 @@ evaluated as one batch. Window assembly, plan checks, plausibility limits and
 health figures live in ROS-free modules of this package, and the state the node's
 threads share in one of them (``core.PredictorCore``); the numerics in ``hybrid_models``.
 
-Threads (a MultiThreadedExecutor, see ``executor_for``): each input topic and the plan
-topic has a mutually exclusive callback group of its own (one topic's samples stay in
-order) and only reads, checks and stores samples; forecasting runs in a group of its
-own, woken by a guard condition; ``~/predict`` is served by a thread of its own in C
+Threads: one executor thread (rclpy's single-threaded executor, ``executor_for``) reads,
+checks and stores the input and plan samples and serves /clock, parameters and
+/diagnostics; it runs every entity a wait found ready before it waits again, so no input
+topic starves behind another (with a group per topic in a multi-threaded executor a
+state topic the node could not keep up with once held the actuators back). Forecasting
+runs on a thread of its own (``forecast``), woken by the state callback: at 100 Hz the
+multi-threaded executor's dispatch of a guard condition and of each input to a pool
+cost a vehicle's state more than the forecast's own compute (docs/predictor.md, "At
+the vehicle's rate"). ``~/predict`` is served by a thread of its own in C
 (``what_if_c.door``), which admits at most ``service_capacity`` requests at a time and
 answers the rest "busy" at once, with the time to come back, without the interpreter;
-the admitted ones are answered by a pool of as many Python threads;
-/clock, parameters and /diagnostics keep the default group. None of them waits for
-another, so no input callback starves: rclpy offers a group's ready subscriptions in a
-fixed order, and when the inputs shared one group a state topic the node could not keep
-up with won every turn and held the actuators back (a what-if refused for "actuators
-silent" behind a simulator at 10x).
+the admitted ones are answered by a pool of as many Python threads.
 
 Health is judged on two clocks (``health``): message time and a steady wall clock, so a
 paused or dead source under use_sim_time, which stops /clock with it, is ERROR too. The
@@ -50,9 +51,9 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.clock import Clock, ClockType, JumpThreshold
 from rclpy.duration import Duration
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from what_if_c.door import open_door
@@ -69,7 +70,6 @@ from vessel_datasets.topic_map import TopicMapError, topic_map_for
 from vessel_datasets.topic_messages import channel_reader
 from vessel_description import VesselError, load_vessel
 from vessel_ros_bridge import messages
-from vessel_ros_bridge.executors import MultiThreadedExecutor
 from vessel_ros_bridge.lifecycle import run_node
 from vessel_ros_bridge.names import node_topic
 from vessel_ros_bridge.parameters import declare_from_specs, load_specs, package_config
@@ -157,12 +157,14 @@ class PredictorNode(Node):
         for topic, msg_class in messages.message_types(self.topic_map).items():
             self.readers[topic] = channel_reader(self.topic_map, topic)
             self.create_subscription(msg_class, self.resolved[topic],
-                                     partial(self._on_input, topic), input_qos,
-                                     callback_group=MutuallyExclusiveCallbackGroup())
-        self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10,
-                                 callback_group=MutuallyExclusiveCallbackGroup())
-        self.forecast_trigger = self.create_guard_condition(
-            self._forecast_worker, callback_group=MutuallyExclusiveCallbackGroup())
+                                     partial(self._on_input, topic), input_qos)
+        self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10)
+        # Set by the input callbacks when a state is due a forecast (core.pending holds it).
+        self.forecast_due = threading.Event()
+        self.stopping = False
+        self.forecasting = threading.Thread(target=self._forecast_loop, name='forecast',
+                                            daemon=True)
+        self.forecasting.start()
         # Every request is answered (success, failure or busy), reliable and keep-all,
         # by the door's thread: a refusal never waits for the interpreter, which the
         # forecasts' Python work holds (docs/predictor.md, "Soak benchmark").
@@ -248,9 +250,9 @@ class PredictorNode(Node):
         if topic == self.core.window.state_topic:
             received_ns = (info or {}).get('received_timestamp') or time.time_ns()
             if self.core.state_arrived(t, received_ns):
-                self.forecast_trigger.trigger()
+                self.forecast_due.set()
         elif self.core.resume_deferred():
-            self.forecast_trigger.trigger()
+            self.forecast_due.set()
         self.core.input_event.set()
 
     def _say(self, key: str, text: str, error: bool = False) -> None:
@@ -275,6 +277,22 @@ class PredictorNode(Node):
     def _now(self) -> float:
         return self.get_clock().now().nanoseconds * 1e-9
 
+    def _forecast_loop(self) -> None:
+        """Forecast each pending state until the node is destroyed (the thread ``forecast``)."""
+        while True:
+            self.forecast_due.wait()
+            # Cleared before the work: a state that comes meanwhile sets it again.
+            self.forecast_due.clear()
+            if self.stopping:
+                return
+            try:
+                self._forecast_worker()
+            except Exception as exc:  # noqa: BLE001 - the next state is forecast anew
+                if self.stopping or not self.context.ok():   # publishing while stopping
+                    return
+                self.core.count('forecast_failures')
+                self._say('forecast_failed', f'forecast failed: {exc!r}', error=True)
+
     def _forecast_worker(self) -> None:
         """Forecast the pending state once its sample is complete or the wait is over."""
         job = self.core.next_job(self._now)
@@ -288,7 +306,10 @@ class PredictorNode(Node):
                 self._say('withheld', f'forecast withheld: {outcome.withheld}', error=True)
             else:
                 self.forecast_pub.publish(outcome.message)
-                self.path_pub.publish(path_message(outcome.message, self.p['path_stride']))
+                # Made only while someone listens (RViz, a recorder): at 100 Hz the path
+                # cost a state 0.7 ms the forecast's next state waited for.
+                if self.path_pub.get_subscription_count():
+                    self.path_pub.publish(path_message(outcome.message, self.p['path_stride']))
         if job.scoring.ready:
             self.core.score(job.scoring)
 
@@ -296,6 +317,9 @@ class PredictorNode(Node):
         """Close the what-if door first: its service lives on this node."""
         self.door.close()
         self.answering.shutdown(wait=False, cancel_futures=True)
+        self.stopping = True
+        self.forecast_due.set()
+        self.forecasting.join(timeout=5.0)
         super().destroy_node()
 
     def _take_admitted(self) -> None:
@@ -357,19 +381,9 @@ def status(level: int, name: str, message: str, hardware_id: str,
                             values=[KeyValue(key=k, value=v) for k, v in values.items()])
 
 
-def executor_for(node: PredictorNode) -> MultiThreadedExecutor:
-    """Return the executor the predictor spins in, with ``executor_threads(node)``."""
-    return MultiThreadedExecutor(num_threads=executor_threads(node))
-
-
-def executor_threads(node: PredictorNode) -> int:
-    """
-    Return the threads the node's executor needs so no callback group waits for one.
-
-    One per input topic and the plan topic, and one each for forecasting and the default
-    group; ``~/predict`` has threads of its own (the door's and its answering pool).
-    """
-    return len(node.readers) + 3
+def executor_for(node: PredictorNode) -> SingleThreadedExecutor:
+    """Return the executor the predictor's inputs are read in (module doc, "Threads")."""
+    return SingleThreadedExecutor(context=node.context)
 
 
 def main(args=None) -> int:
