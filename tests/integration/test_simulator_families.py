@@ -148,6 +148,38 @@ def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launc
     assert not refused.success and f"{boat.actuator_names[0]} in 'rpm'" in refused.message
 
 
+def test_a_forecast_that_fails_is_counted_and_the_next_state_is_forecast(trained, ros_node):
+    # Forecasting runs on a thread of its own: an exception there must not end it (the
+    # node would go on reading inputs and never forecast again).
+    from rclpy.parameter import Parameter
+
+    from hybrid_predictor.node import PredictorNode
+
+    vessel, checkpoint = trained
+    node = PredictorNode(context=ros_node.context, parameter_overrides=[
+        Parameter('model_path', value=str(checkpoint)), Parameter('vessel', value=vessel)])
+    try:
+        calls = []
+
+        def failing_once():
+            calls.append(time.monotonic())
+            if len(calls) == 1:
+                raise RuntimeError('a fault of the forecast')
+
+        node._forecast_worker = failing_once
+        for _ in range(2):
+            node.forecast_due.set()
+            deadline = time.monotonic() + 10
+            while node.forecast_due.is_set() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            time.sleep(0.1)
+        assert len(calls) == 2 and node.forecasting.is_alive(), calls
+        assert node.core.counts['forecast_failures'] == 1, node.core.counts
+    finally:
+        node.destroy_node()
+    assert not node.forecasting.is_alive()
+
+
 def test_no_input_topic_of_the_predictor_waits_for_another(trained, ros_node):
     # A state topic the node cannot keep up with must not hold the others back: when the
     # inputs shared one callback group of a multi-threaded executor, the state topic won
