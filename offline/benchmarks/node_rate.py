@@ -113,10 +113,13 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     spinner = busy_process = None
     logs = Path(tempfile.mkdtemp(prefix='bench_rate_'))
     with Children(logs) as children:
-        predictor = children.start([sys.executable, str(Path(__file__).with_name(
-            'stand_in.py')), vehicle], 'predictor') if stand_in else children.node(
-            'hybrid_predictor', 'predictor', '--log-level', 'warn', params={
-                'model_path': str(model), 'vessel': vehicle, 'forecast_period': 0.0})
+        if stand_in:   # logged as the predictor's, whose log is read below
+            predictor = children.start([sys.executable, str(Path(__file__).with_name(
+                'stand_in.py')), vehicle], 'predictor')
+        else:
+            predictor = children.node('hybrid_predictor', 'predictor', '--log-level', 'warn',
+                                      params={'model_path': str(model), 'vessel': vehicle,
+                                              'forecast_period': 0.0})
         rclpy.init(**rclpy_options())
         try:
             node = rclpy.create_node('bench_rate_client')

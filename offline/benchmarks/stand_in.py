@@ -23,7 +23,7 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
-    from hybrid_predictor.input_window import STATE_ENTRY
+    from hybrid_predictor.input_window import state_topic
     from hybrid_predictor.node import FORECAST_TOPIC
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_datasets.topic_map import topic_map_for
@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     from vessel_ros_bridge.names import DEFAULT_NAMESPACE
 
     topic_map = topic_map_for(load_vessel(args.vehicle))
-    state = next(e.topic for e in topic_map.entries if e.name == STATE_ENTRY)
+    state = state_topic(topic_map)
     rclpy.init()
     node = rclpy.create_node('stand_in_predictor', namespace=DEFAULT_NAMESPACE)
     publisher = node.create_publisher(Forecast, FORECAST_TOPIC, 10)

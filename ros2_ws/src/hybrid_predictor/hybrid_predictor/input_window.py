@@ -40,6 +40,11 @@ POSE = ('x', 'y', 'psi')   # and z, for a 6-DOF vehicle (``pose_columns``)
 STATE_ENTRY = 'surge'  # its topic's newest sample ends the window
 
 
+def state_topic(topic_map) -> str:
+    """Return the topic whose newest sample ends a window: the map's state entry's."""
+    return next(e.topic for e in topic_map.entries if e.name == STATE_ENTRY)
+
+
 def pose_columns(vessel) -> tuple[str, ...]:
     """Return the pose a window reports: x, y, psi, and z for a 6-DOF vehicle."""
     return POSE + (('z',) if vessel.is_spatial else ())
@@ -292,7 +297,7 @@ class InputWindow:
         self.lines = TimeLines(max_age, re_anchor_after)
         self.configure(max_gap=max_gap, max_age=max_age, max_future=max_future,
                        restart_span=restart_span, re_anchor_after=re_anchor_after)
-        self.state_topic = next(e.topic for e in topic_map.entries if e.name == STATE_ENTRY)
+        self.state_topic = state_topic(topic_map)
         self.lag = max(self.delays.values(), default=0.0)
         self.stream_delays = {topic: sorted({self.delays.get(c, 0.0) for c in s.channels})
                               for topic, s in self.streams.items()}
