@@ -211,6 +211,11 @@ stage_build() {
     tail -n 25 "$log" >&2
     die "colcon build failed (full log: $log)"
   fi
+  # Byte-compiled once here, as pip compiles what it installs: under
+  # PYTHONDONTWRITEBYTECODE (set on this project's machines) every node, CLI and test
+  # process otherwise compiled the workspace's modules again on import.
+  "$VENV/bin/python" -m compileall -q "$WS/install" >/dev/null \
+    || die "byte-compiling ros2_ws/install failed"
   echo "$want" >"$stamp"
 }
 
