@@ -2,22 +2,22 @@
 
 from pathlib import Path
 
-# The unit test files that take longest, longest first (seconds of a file's tests, setup
-# included, in one run on a 2-core machine, 2026-12-02: 113, 43, 33, 30, 29, 28, 27, 25,
-# 21, 18, 18, 18, 17, 15, 12, 12, 10 of the 612 s all files took; measured with
-# `pytest tests/unit -n 2 --dist loadfile --junitxml=FILE`, summed per file). They are
-# collected ahead of the rest, and tools/run_tests.sh has pytest-xdist hand files to its
-# workers in collection order (--no-loadscope-reorder; by default it orders them by their
-# number of tests): a long file handed out last keeps one worker busy while the other
-# idles. The real-data trainings' file, missing from this list, once ran alone for the
-# last 67 s of the unit part.
+# The unit test files that take longest, longest first (seconds of a file's default
+# tests, setup included, in one run on a 2-core machine, 2026-12-02: 43, 33, 30, 29, 28,
+# 27, 25, 21, 18, 18, 18, 18, 17, 15, 12, 12, 10 of the 519 s all files took; measured
+# with `pytest tests/unit -n 2 --dist loadfile --junitxml=FILE`, summed per file). They
+# are collected ahead of the rest, and tools/run_tests.sh has pytest-xdist hand files to
+# its workers in collection order (--no-loadscope-reorder; by default it orders them by
+# their number of tests): a long file handed out last keeps one worker busy while the
+# other idles (the real-data trainings' file, missing from an older list, once ran alone
+# for the unit part's last 67 s).
 #
 # The default integration tests' time is mostly that of the live graphs they start, and
 # two of the longest started together slowed each other (the suite took 245 s instead of
 # 188-218 s): there pytest-xdist's own order stays.
 LONGEST_FIRST = tuple(f'unit/test_{name}.py' for name in (
-    'real_training', 'real_claims', 'diagnosis_multirotor', 'diagnosis_cases', 'crossval',
-    'models_engine', 'training_launcher', 'diagnosis_families', 'training_distributed',
+    'real_claims', 'diagnosis_multirotor', 'diagnosis_cases', 'crossval', 'models_engine',
+    'training_launcher', 'diagnosis_families', 'training_distributed', 'real_training',
     'diagnosis_mmg', 'setup_script', 'simulate_cli', 'training_smoke',
     'multirotor_simulation', 'served_precision', 'set_bands_study', 'cross_bands'))
 # The slow integration checks (make test-slow, three files at a time) wait on real-time

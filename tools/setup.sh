@@ -31,7 +31,15 @@ REQUIRED_PY="3.11"
 say() { echo "[setup] $*" >&2; }
 die() { echo "setup: error: $*" >&2; exit 1; }
 
-hash_files() { cat "$@" | sha256sum | cut -c1-16; }
+# A stage's stamp covers its inputs and its own code (the functions named, as bash
+# prints them), not the whole script: an edit to one stage remakes that stage alone
+# (hashing this file made a change to the build reinstall all three environments).
+hash_with_code() {  # FUNCTION... -- FILE...
+  local names=()
+  while [ "$1" != "--" ]; do names+=("$1"); shift; done
+  shift
+  { cat "$@"; declare -f "${names[@]}"; } | sha256sum | cut -c1-16
+}
 
 # --- stage: a Python 3.11 interpreter -------------------------------------------------
 find_python() {
@@ -81,7 +89,7 @@ stage_venv() {
 deps_hash() {
   local f files=()
   for f in "$REQ"/*.txt; do [ "${f##*/}" = bench.txt ] || files+=("$f"); done
-  hash_files "${files[@]}" "${BASH_SOURCE[0]}"
+  hash_with_code stage_deps pip_install pip_unresolved deps_present -- "${files[@]}"
 }
 
 deps_present() {
@@ -195,7 +203,8 @@ stage_fixups() {
 # --- stage: colcon build of the workspace ---------------------------------------------
 source_hash() {
   (cd "$WS" && find src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' -print0 \
-    | sort -z | xargs -0 sha256sum; cat "$VENV/.deps-hash") | sha256sum | cut -c1-16
+    | sort -z | xargs -0 sha256sum; cat "$VENV/.deps-hash"; declare -f stage_build) \
+    | sha256sum | cut -c1-16
 }
 
 stage_build() {
@@ -226,8 +235,8 @@ stage_build() {
 # $ROSTOOLS/site by the venv's pip (--target: nothing goes into the venv), and the one
 # interface package launch_ros imports is built with colcon into $ROSTOOLS/ros.
 # tools/with_rostools.sh layers both over the project's environment.
-rostools_hash() { hash_files "$VENDOR"/vendor/*.tar.gz "$VENDOR/requirements.txt" \
-  "${BASH_SOURCE[0]}" "$VENV/.deps-hash"; }
+rostools_hash() { hash_with_code stage_rostools -- "$VENDOR"/vendor/*.tar.gz \
+  "$VENDOR/requirements.txt" "$VENV/.deps-hash"; }
 
 stage_rostools() {
   local want; want="$(rostools_hash)"
@@ -268,7 +277,7 @@ stage_rostools() {
 # models need them): the product never imports them, and the offline/peers/ adapters
 # that do run with $BENCH/bin/python. Remade whole when its inputs changed.
 BENCH_VENDOR="$ROOT/tools/bench/vendor"
-bench_hash() { hash_files "$REQ/bench.txt" "$BENCH_VENDOR"/*.tar.gz "${BASH_SOURCE[0]}"; }
+bench_hash() { hash_with_code stage_bench -- "$REQ/bench.txt" "$BENCH_VENDOR"/*.tar.gz; }
 
 stage_bench() {
   local want; want="$(bench_hash)"

@@ -99,6 +99,25 @@ def test_two_stages_run_at_once_and_either_ones_failure_fails_the_pair(tmp_path)
         assert all(e.startswith('start') for e in events[4 * pair:4 * pair + 2]), events
 
 
+def test_a_stage_is_remade_when_its_own_code_changes_and_not_for_anothers():
+    # Stamped with the whole script, an edit to the build reinstalled every environment.
+    script = f"""
+        source {SETUP}
+        before="$(bench_hash) $(rostools_hash)"
+        eval "$(declare -f stage_build | sed 's/colcon build/colcon build --symlink-install/')"
+        echo "$before" "$(bench_hash) $(rostools_hash)"
+        eval "$(declare -f stage_bench | sed 's/about a minute/about two minutes/')"
+        echo "$(bench_hash) $(rostools_hash)"
+    """
+    result = subprocess.run(['bash', '-c', script], capture_output=True, text=True,
+                            timeout=60)
+    assert result.returncode == 0, result.stderr
+    (bench, rostools, bench_after_build, rostools_after_build), (bench_edited, rostools_kept) = (
+        line.split() for line in result.stdout.splitlines())
+    assert (bench_after_build, rostools_after_build) == (bench, rostools)
+    assert bench_edited != bench and rostools_kept == rostools
+
+
 def test_help_is_the_header_comment_and_nothing_after_it():
     result = run_setup('--help', {})
     assert result.returncode == 0
