@@ -57,6 +57,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from what_if_c.door import open_door
+from what_if_c.outlet import Outlet
 
 from hybrid_models.checkpoint_format import CheckpointError
 from hybrid_models.engine import Forecaster
@@ -149,6 +150,9 @@ class PredictorNode(Node):
 
         self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
         self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
+        # Sent with the interpreter lock released: rclpy's publish held it while rcl handed
+        # a quadrotor's forecast to a subscriber (0.5 ms a state), and the inputs waited.
+        self.forecast_out, self.path_out = Outlet(self.forecast_pub), Outlet(self.path_pub)
         self.skill_pub = self.create_publisher(DiagnosticStatus, SKILL_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         input_qos = QoSProfile(depth=p['input_queue_depth'], reliability=(
@@ -305,11 +309,11 @@ class PredictorNode(Node):
             if outcome.withheld:
                 self._say('withheld', f'forecast withheld: {outcome.withheld}', error=True)
             else:
-                self.forecast_pub.publish(outcome.message)
+                self.forecast_out.publish(outcome.message)
                 # Made only while someone listens (RViz, a recorder): at 100 Hz the path
                 # cost a state 0.7 ms the forecast's next state waited for.
                 if self.path_pub.get_subscription_count():
-                    self.path_pub.publish(path_message(outcome.message, self.p['path_stride']))
+                    self.path_out.publish(path_message(outcome.message, self.p['path_stride']))
         if job.scoring.ready:
             self.core.score(job.scoring)
 

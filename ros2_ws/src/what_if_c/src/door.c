@@ -34,10 +34,9 @@
 
 #include "hybrid_predictor_interfaces/srv/predict.h"
 
-#define MAX_CAPACITY 64
+#include "message_class.h"
 
-typedef bool convert_from_py_t(PyObject *, void *);
-typedef PyObject * convert_to_py_t(void *);
+#define MAX_CAPACITY 64
 
 static double monotonic_s(void)
 {
@@ -342,25 +341,6 @@ static void * door_main(void * arg)
   pthread_cond_broadcast(&d->waiting);
   pthread_mutex_unlock(&d->lock);
   return NULL;
-}
-
-/* A message class's C function, as rclpy finds it: a capsule on the class's metaclass. */
-typedef union
-{
-  void * pointer;
-  convert_to_py_t * to_py;
-  convert_from_py_t * from_py;
-} function_t;
-
-static function_t capsule_function(PyObject * cls, const char * name)
-{
-  function_t function = {NULL};
-  PyObject * capsule = PyObject_GetAttrString((PyObject *)Py_TYPE(cls), name);
-  if (capsule) {
-    function.pointer = capsule == Py_None ? NULL : PyCapsule_GetPointer(capsule, NULL);
-    Py_DECREF(capsule);
-  }
-  return function;
 }
 
 static bool check_rcl(rcl_ret_t ret, const char * what)

@@ -1,5 +1,5 @@
 """
-The what-if service's parts in C over rcl, where the interpreter lock would hold them up.
+The predictor's parts in C over rcl, where the interpreter lock would hold them up.
 
 - ``door``: the predictor's ``~/predict`` service on a thread of its own, admitting at
   most ``service_capacity`` requests for the node's Python and answering the rest
@@ -8,7 +8,9 @@ The what-if service's parts in C over rcl, where the interpreter lock would hold
   convert nothing to Python, so the soak measures the node and not a client's own
   interpreter (a Python client converts each 1.65 MB answer under its lock, and a
   busy answer arriving meanwhile waits).
+- ``outlet``: the node's forecasts published with the lock released while rcl hands
+  them to the subscribers (rclpy holds it throughout).
 
-Both are Python extensions rather than programs: the ROS wheels' librcl needs
+All are Python extensions rather than programs: the ROS wheels' librcl needs
 libraries that need the interpreter's symbols.
 """
