@@ -202,9 +202,8 @@ stage_fixups() {
 
 # --- stage: colcon build of the workspace ---------------------------------------------
 source_hash() {
-  (cd "$WS" && find src -type f -not -path '*/__pycache__/*' -not -name '*.pyc' -print0 \
-    | sort -z | xargs -0 sha256sum; cat "$VENV/.deps-hash"; declare -f stage_build) \
-    | sha256sum | cut -c1-16
+  hash_with_code stage_build -- <(cd "$WS" && find src -type f -not -path '*/__pycache__/*' \
+    -not -name '*.pyc' -print0 | sort -z | xargs -0 sha256sum) "$VENV/.deps-hash"
 }
 
 stage_build() {

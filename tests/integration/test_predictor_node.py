@@ -73,6 +73,7 @@ def default_model():
 
 def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_model(
         launcher, ros_node, tmp_path):
+    from nav_msgs.msg import Path as PathMsg
     import torch
 
     from hybrid_models.engine import wind_direction_columns
@@ -81,8 +82,10 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
     from vessel_ros_bridge import messages as m
 
     inputs = Inputs(ros_node)
-    forecasts = []
+    forecasts, paths = [], []
     ros_node.create_subscription(Forecast, '/vessel/forecast', forecasts.append, 10)
+    # The path is made while someone listens, as RViz does.
+    ros_node.create_subscription(PathMsg, '/vessel/forecast/path', paths.append, 10)
     # Without sensor noise, so that the sign check below compares conventions, not noise:
     # with it (v: 0.02 m/s in the forecast's input and again in the odometry it is compared
     # with) a right forecast missed the odometry by 0.05 m/s in a CI run.
@@ -104,6 +107,12 @@ def test_forecast_has_the_right_shape_frames_stamps_and_matches_the_offline_mode
 
     msg = covered()[-1]
     assert msg.horizon == 900 and msg.step_period == 1.0
+    # Its track as a Path on forecast/path, in the forecast's frame, from its first step to
+    # its last.
+    assert spin_until(ros_node, lambda: [p for p in paths if p.header == msg.header], 10)
+    path = next(p for p in paths if p.header == msg.header)
+    ends = [(q.pose.position.x, q.pose.position.y) for q in (path.poses[0], path.poses[-1])]
+    assert ends == [(msg.x[0], msg.y[0]), (msg.x[-1], msg.y[-1])]
     assert list(msg.state_names) == ['u', 'v', 'p', 'r', 'phi']
     assert len(msg.hybrid) == len(msg.physics) == 900 * 5
     assert len(msg.x) == len(msg.y) == len(msg.heading) == 900

@@ -47,21 +47,16 @@ def graph():
 
 def forecast(k: int):
     """Return a Forecast the size of a quadrotor's (12 states x 100 steps, two bands)."""
-    from array import array
-
     import numpy as np
 
+    from hybrid_predictor.forecast_messages import doubles
     from hybrid_predictor_interfaces.msg import Forecast
 
-    def doubles(n):
-        out = array('d')
-        out.frombytes(np.random.default_rng(k).normal(size=n).tobytes())
-        return out
-
+    rng = np.random.default_rng(k)
     msg = Forecast(model_id=f'outlet test {k}', horizon=100, state_names=['u'] * 12)
-    msg.hybrid, msg.physics = doubles(1200), doubles(1200)
-    msg.band_lower, msg.band_upper = doubles(2400), doubles(2400)
-    msg.x, msg.y, msg.z, msg.heading = doubles(100), doubles(100), doubles(100), doubles(100)
+    msg.hybrid, msg.physics = doubles(rng.normal(size=1200)), doubles(rng.normal(size=1200))
+    msg.band_lower, msg.band_upper = doubles(rng.normal(size=2400)), doubles(rng.normal(size=2400))
+    msg.x, msg.y, msg.z, msg.heading = (doubles(rng.normal(size=100)) for _ in range(4))
     return msg
 
 

@@ -148,11 +148,10 @@ class PredictorNode(Node):
         if self.core.unbounded:
             self.get_logger().warning(self.core.unbounded)
 
-        self.forecast_pub = self.create_publisher(Forecast, FORECAST_TOPIC, 10)
-        self.path_pub = self.create_publisher(PathMsg, PATH_TOPIC, 10)
         # Sent with the interpreter lock released: rclpy's publish held it while rcl handed
         # a quadrotor's forecast to a subscriber (0.5 ms a state), and the inputs waited.
-        self.forecast_out, self.path_out = Outlet(self.forecast_pub), Outlet(self.path_pub)
+        self.forecast_out = Outlet(self.create_publisher(Forecast, FORECAST_TOPIC, 10))
+        self.path_out = Outlet(self.create_publisher(PathMsg, PATH_TOPIC, 10))
         self.skill_pub = self.create_publisher(DiagnosticStatus, SKILL_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         input_qos = QoSProfile(depth=p['input_queue_depth'], reliability=(
@@ -312,7 +311,7 @@ class PredictorNode(Node):
                 self.forecast_out.publish(outcome.message)
                 # Made only while someone listens (RViz, a recorder): at 100 Hz the path
                 # cost a state 0.7 ms the forecast's next state waited for.
-                if self.path_pub.get_subscription_count():
+                if self.path_out.publisher.get_subscription_count():
                     self.path_out.publish(path_message(outcome.message, self.p['path_stride']))
         if job.scoring.ready:
             self.core.score(job.scoring)
