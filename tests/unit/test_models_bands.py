@@ -54,6 +54,23 @@ def test_bands_cover_their_level_on_fresh_forecasts_and_never_narrow():
     assert max(departed['states']['u'][1]) < 0.7
 
 
+def test_bands_at_a_horizon_are_made_once_and_no_caller_can_change_them():
+    pred, true = forecasts(500, seed=0)
+    bands = calibrate(pred, true, SHIP, relative_threshold=0.15)
+    first, again = bands.at(H), bands.at(H)
+    assert all(a is b for a, b in zip(first, again, strict=True))
+    lower, upper, position = first
+    with pytest.raises(ValueError, match='read-only'):
+        lower[0, 0, 0] = 0.0
+    # Each horizon its own: a longer one is NaN past the calibrated horizon.
+    longer = bands.at(H + 5)[1]
+    assert np.array_equal(longer[:, :H], upper) and np.isnan(longer[:, H:]).all()
+    # Between the knots, each state's band is the linear interpolation of its knots.
+    for li in range(len(bands.levels)):
+        assert np.allclose(upper[li, :, 2], np.interp(np.arange(1, H + 1), bands.steps,
+                                                      bands.upper[li, :, 2]))
+
+
 def test_widening_pools_a_level_quantile_instead_of_ratcheting_it_up():
     rng = np.random.default_rng(3)
     noisy_level = 1.0 + 0.05 * rng.normal(size=200)

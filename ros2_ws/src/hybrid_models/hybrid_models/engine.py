@@ -389,13 +389,14 @@ class Forecaster:
             held = np.concatenate([held, np.zeros(padded - batch, bool)])
         shards = self._shards(padded)
         size = padded // shards
-        jax = jax_module()
-        # Dispatch is asynchronous: every shard is running before the first is read.
+        # Dispatch is asynchronous: every shard is running before the first is read. Each
+        # runs on its parameters' device, where jax moves the NumPy inputs itself (an
+        # explicit device_put cost a single forecast 0.2 of its 0.8 ms).
         turning = self._wind is not None and bool(held.any())
-        running = [self._compiled(self._device_params[k], *jax.device_put(
-            (z_window, c_window, c_future[k * size:(k + 1) * size],
-             held[k * size:(k + 1) * size]), self.devices[k]), turning=turning)
-            for k in range(shards)]
+        running = [self._compiled(self._device_params[k], z_window, c_window,
+                                  c_future[k * size:(k + 1) * size],
+                                  held[k * size:(k + 1) * size], turning=turning)
+                   for k in range(shards)]
         hybrid, physics, *wind = (np.concatenate([np.asarray(part, np.float64)
                                                   for part in parts])[:batch]
                                   for parts in zip(*running, strict=True))
