@@ -110,8 +110,13 @@ engine = Forecaster.from_model(make_model('pro+lin', threshold=0.15), dtype=np.f
 z, c, future = inputs(batch=64)
 batch = engine.forecast(z, c, future)
 alone = [engine.forecast(z, c, future[k]) for k in (0, 31, 32, 63)]
+# Each shard's program runs where its parameters are: NumPy inputs follow them there.
+placed = [sorted(d.id for d in engine._compiled(
+    engine._device_params[k], z, c, future[:32], np.zeros(32, bool), turning=False)[0].devices())
+    for k in range(len(engine.devices))]
 print(json.dumps({
-    'devices': len(engine.devices), 'shards': engine._shards(64),
+    'devices': len(engine.devices), 'shards': engine._shards(64), 'placed': placed,
+    'device_ids': [d.id for d in engine.devices],
     'max_diff': max(float(np.abs(batch.hybrid[k] - a.hybrid[0]).max()) + float(np.abs(
         batch.physics[k] - a.physics[0]).max()) for k, a in zip((0, 31, 32, 63), alone))}))
 """
@@ -129,6 +134,7 @@ def test_batches_use_every_core_and_give_each_plan_its_own_forecast():
     cores = len(os.sched_getaffinity(0))
     assert result['devices'] == cores
     assert result['shards'] == min(cores, 64 // 8)
+    assert result['placed'] == [[i] for i in result['device_ids']]
     assert result['max_diff'] < 1e-9
 
 
