@@ -12,6 +12,8 @@ import time
 
 import pytest
 
+from .conftest import wait_for
+
 pytestmark = pytest.mark.ros
 UNTIL_S = 10.0
 
@@ -34,9 +36,7 @@ def graph():
     executor.add_node(receiver)
     spinning = threading.Thread(target=executor.spin, daemon=True)
     spinning.start()
-    deadline = time.monotonic() + 10.0
-    while not publisher.get_subscription_count() and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_for(publisher.get_subscription_count, 10.0)
     assert publisher.get_subscription_count() == 1
     yield publisher, received
     executor.shutdown()
@@ -112,9 +112,7 @@ def test_the_outlet_sends_what_rclpy_would_and_refuses_another_type(graph):
     outlet = Outlet(publisher)
     for msg in sent:
         outlet.publish(msg)
-    deadline = time.monotonic() + 10.0
-    while len(received) < len(sent) and time.monotonic() < deadline:
-        time.sleep(0.05)
+    wait_for(lambda: len(received) >= len(sent), 10.0)
     assert received == sent
     with pytest.raises(TypeError, match='expected Forecast, got str'):
         outlet.publish('a forecast')
