@@ -466,6 +466,8 @@ def stage_figures(stages: list[tuple[int, ...]]) -> dict:
     Return p50/p99 (ms) of each stage of the answers, and of the stages of the slowest 1 %.
 
     ``stages`` rows: (sent, written by the node, received, take begun, taken, done), ns.
+    A take begun while DDS is still delivering the answer waits for it: "queued in the
+    client" is then a few tens of microseconds below zero.
     """
     if not stages:
         return {}

@@ -113,10 +113,13 @@ def test_the_c_clients_count_every_answer_as_the_service_gave_it(tmp_path):
     assert len(raw['busy_latencies']) == len(raw['busy_stages']) == raw['busy']
     assert len(raw['success_latencies']) == raw['success']
     assert all(0 < x < 5 for x in raw['latencies'])
-    # A busy answer's stages, on the one clock of this machine: sent, written by the
-    # service, received, take begun, taken, done, in that order.
+    # A busy answer's stages, on the one clock of this machine: (sent, written by the
+    # service, received, take begun, taken, done). Each event causes the next but one:
+    # a take that begins while DDS is still delivering the answer waits for it, so its
+    # beginning may precede the answer's receipt (by 73 us in a CI run), never its taking.
     for stages in raw['busy_stages']:
-        assert len(stages) == 6 and stages == sorted(stages), stages
+        sent, written, received, begun, taken, done = stages
+        assert sent <= written <= received <= taken <= done and begun <= taken, stages
     assert raw['request_kb'] == round(len(serialize_message(request)) / 1e3, 1)
     assert raw['success_answer_kb'] == round(len(serialize_message(success_answer())) / 1e3, 1)
     assert raw['success_answer_kb'] > 8
