@@ -9,12 +9,13 @@ simulate, then a smoke training of seconds): it must forecast with the vessel's 
 """
 
 import math
+import threading
 import time
 
 import numpy as np
 import pytest
 
-from .conftest import REPO, answer_of, spin_until
+from .conftest import REPO, answer_of, spin_until, wait_for
 
 pytestmark = pytest.mark.ros
 
@@ -180,29 +181,30 @@ def test_a_forecast_that_fails_is_counted_and_the_next_state_is_forecast(trained
     assert not node.forecasting.is_alive()
 
 
-def test_no_input_topic_of_the_predictor_waits_for_another(trained, ros_node):
+def test_the_predictor_reads_its_inputs_in_the_order_they_arrived(trained, ros_node):
     # A state topic the node cannot keep up with must not hold the others back: when the
     # inputs shared one callback group of a multi-threaded executor, the state topic won
     # every turn and the actuators were not read (CI: a what-if refused for "actuators
-    # silent for 2.8 s" behind this simulator at 4x on a loaded machine). The predictor's
-    # executor runs every input a wait found ready before it waits again, so with a
-    # backlog of states queued each other topic's message is read in the first round.
+    # silent for 2.8 s" behind this simulator at 4x on a loaded machine); rclpy's events
+    # executor read a backlog of states ahead of an actuators message sent amid them.
+    # With a backlog queued while the node is busy, every message is read in the order sent.
     from rclpy.parameter import Parameter
 
-    from hybrid_predictor.node import PredictorNode, executor_for
+    from hybrid_predictor.node import PredictorNode
     from vessel_ros_bridge import messages
 
     vessel, checkpoint = trained
-    backlog = 40
+    backlog, after = 40, 5
     node = PredictorNode(context=ros_node.context, parameter_overrides=[
         Parameter('model_path', value=str(checkpoint)), Parameter('vessel', value=vessel),
-        Parameter('input_queue_depth', value=backlog + 10)])
-    executor = executor_for(node)
+        Parameter('input_queue_depth', value=backlog + after + 10)])
+    busy = threading.Event()   # the node's first read holds it up until all is sent
     try:
         read = []
         for topic, reader in list(node.readers.items()):
             def noted(msg, topic=topic, reader=reader):
                 read.append(topic)
+                busy.wait(20)
                 return reader(msg)
             node.readers[topic] = noted
         state = node.core.window.state_topic
@@ -213,18 +215,16 @@ def test_no_input_topic_of_the_predictor_waits_for_another(trained, ros_node):
                       for t in node.readers}
         assert spin_until(ros_node, lambda: all(
             p.get_subscription_count() for p in publishers.values()), 10)
-        for _ in range(backlog):
-            publishers[state].publish(types[state]())
-        for topic in others:
+        sent = [state] * backlog + others + [state] * after
+        for topic in sent:
             publishers[topic].publish(types[topic]())
-        time.sleep(1.0)   # every message delivered and queued before the node reads one
-        executor.add_node(node)
-        deadline = time.monotonic() + 20
-        while len(read) < backlog + len(others) and time.monotonic() < deadline:
-            executor.spin_once(timeout_sec=0.1)
-        assert read.count(state) == backlog, read
-        # The first round: one message of each ready topic, in any order.
-        assert set(others) <= set(read[:len(node.readers)]), read[:len(node.readers) + 5]
+            time.sleep(0.001)
+        time.sleep(1.0)   # every message delivered and queued behind the first
+        assert read == [state], read
+        busy.set()
+        assert wait_for(lambda: len(read) >= len(sent), 20), read
+        assert read == sent, read
     finally:
-        executor.shutdown()
+        busy.set()
         node.destroy_node()
+    assert not node.reading.is_alive()

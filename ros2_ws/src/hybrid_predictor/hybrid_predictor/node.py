@@ -16,18 +16,21 @@ evaluated as one batch. Window assembly, plan checks, plausibility limits and
 health figures live in ROS-free modules of this package, and the state the node's
 threads share in one of them (``core.PredictorCore``); the numerics in ``hybrid_models``.
 
-Threads: one executor thread (rclpy's single-threaded executor, ``executor_for``) reads,
-checks and stores the input and plan samples and serves /clock, parameters and
-/diagnostics; it runs every entity a wait found ready before it waits again, so no input
-topic starves behind another (with a group per topic in a multi-threaded executor a
-state topic the node could not keep up with once held the actuators back). Forecasting
-runs on a thread of its own (``forecast``), woken by the state callback: at 100 Hz the
-multi-threaded executor's dispatch of a guard condition and of each input to a pool
-cost a vehicle's state more than the forecast's own compute (docs/predictor.md, "At
-the vehicle's rate"). ``~/predict`` is served by a thread of its own in C
-(``what_if_c.door``), which admits at most ``service_capacity`` requests at a time and
-answers the rest "busy" at once, with the time to come back, without the interpreter;
-the admitted ones are answered by a pool of as many Python threads.
+Threads: one thread (``inputs``) reads, checks and stores the input samples and plans,
+taken by ``what_if_c.inlet`` in the order DDS received them, whatever their topic: a
+state topic the node cannot keep up with never holds the actuators back (as a callback
+group per topic in a multi-threaded executor once did), and no executor's Python runs
+per message (rclpy's single-threaded executor, which read in order too, cost a 100 Hz
+state about 1 ms of the node's CPU; docs/predictor.md, "Inputs read in C"). One executor
+thread (rclpy's single-threaded executor, ``executor_for``) serves /clock, parameters
+and /diagnostics. Forecasting runs on a thread of its own (``forecast``),
+woken by the inputs: at 100 Hz the multi-threaded executor's dispatch of a guard
+condition and of each input to a pool cost a vehicle's state more than the forecast's
+own compute (docs/predictor.md, "At the vehicle's rate"). ``~/predict`` is served by
+a thread of its own in C (``what_if_c.door``), which admits at most
+``service_capacity`` requests at a time and answers the rest "busy" at once, with the
+time to come back, without the interpreter; the admitted ones are answered by a pool of
+as many Python threads.
 
 Health is judged on two clocks (``health``): message time and a steady wall clock, so a
 paused or dead source under use_sim_time, which stops /clock with it, is ERROR too. The
@@ -57,6 +60,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from what_if_c.door import open_door
+from what_if_c.inlet import open_inlet
 from what_if_c.outlet import Outlet
 
 from hybrid_models.checkpoint_format import CheckpointError
@@ -154,20 +158,25 @@ class PredictorNode(Node):
         self.path_out = Outlet(self.create_publisher(PathMsg, PATH_TOPIC, 10))
         self.skill_pub = self.create_publisher(DiagnosticStatus, SKILL_TOPIC, 10)
         self.diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        input_types = messages.message_types(self.topic_map)
+        self.readers = {topic: channel_reader(self.topic_map, topic) for topic in input_types}
         input_qos = QoSProfile(depth=p['input_queue_depth'], reliability=(
             ReliabilityPolicy.RELIABLE if p['reliable_inputs'] else ReliabilityPolicy.BEST_EFFORT))
-        self.readers = {}
-        for topic, msg_class in messages.message_types(self.topic_map).items():
-            self.readers[topic] = channel_reader(self.topic_map, topic)
-            self.create_subscription(msg_class, self.resolved[topic],
-                                     partial(self._on_input, topic), input_qos)
-        self.create_subscription(ControlPlan, PLAN_TOPIC, self._on_plan, 10)
-        # Set by the input callbacks when a state is due a forecast (core.pending holds it).
+        # The plans too: at 100 Hz a plan a state through the executor cost its Python turn.
+        self.inlet = open_inlet(self, [(self.resolved[t], c, input_qos)
+                                       for t, c in input_types.items()]
+                                + [(self.plan_topic, ControlPlan, QoSProfile(depth=10))])
+        # Set by the inputs when a state is due a forecast (core.pending holds it).
         self.forecast_due = threading.Event()
         self.stopping = False
         self.forecasting = threading.Thread(target=self._forecast_loop, name='forecast',
                                             daemon=True)
         self.forecasting.start()
+        self.reading = threading.Thread(target=self._read_inputs, args=(
+            [partial(self._on_input, topic) for topic in input_types]
+            + [lambda msg, _received_ns: self._on_plan(msg)],),
+            name='inputs', daemon=True)
+        self.reading.start()
         # Every request is answered (success, failure or busy), reliable and keep-all,
         # by the door's thread: a refusal never waits for the interpreter, which the
         # forecasts' Python work holds (docs/predictor.md, "Soak benchmark").
@@ -229,7 +238,18 @@ class PredictorNode(Node):
         return f'{len(names)} publisher(s) on {CLOCK_TOPIC}: {", ".join(names) or "none"}'
 
     # ------------------------------------------------------------------ inputs
-    def _on_input(self, topic: str, msg, info=None) -> None:
+    def _read_inputs(self, readers: list) -> None:
+        """Take the inlet's messages in the order received until it closes (``inputs``)."""
+        try:
+            while (taken := self.inlet.take()) is not None:
+                for index, msg, received_ns in taken:
+                    readers[index](msg, received_ns)
+        except Exception as exc:  # noqa: BLE001 - said; the health report then sees silence
+            if not self.stopping:
+                self.get_logger().error(f'inputs stopped: {exc!r}')
+
+    def _on_input(self, topic: str, msg, received_ns: int = 0) -> None:
+        """Store one input sample; ``received_ns``: its arrival (ns, system clock; 0: now)."""
         try:
             values = self.readers[topic](msg)
         except (AttributeError, IndexError, TypeError, ValueError) as exc:
@@ -251,8 +271,7 @@ class PredictorNode(Node):
             self._say('rejected', f'rejected input: {reason}')
             return
         if topic == self.core.window.state_topic:
-            received_ns = (info or {}).get('received_timestamp') or time.time_ns()
-            if self.core.state_arrived(t, received_ns):
+            if self.core.state_arrived(t, received_ns or time.time_ns()):
                 self.forecast_due.set()
         elif self.core.resume_deferred():
             self.forecast_due.set()
@@ -317,10 +336,12 @@ class PredictorNode(Node):
             self.core.score(job.scoring)
 
     def destroy_node(self) -> None:
-        """Close the what-if door first: its service lives on this node."""
+        """Close the inlet and the what-if door first: they live on this node."""
+        self.stopping = True
+        self.inlet.destroy()
+        self.reading.join(timeout=5.0)
         self.door.close()
         self.answering.shutdown(wait=False, cancel_futures=True)
-        self.stopping = True
         self.forecast_due.set()
         self.forecasting.join(timeout=5.0)
         super().destroy_node()
@@ -385,7 +406,7 @@ def status(level: int, name: str, message: str, hardware_id: str,
 
 
 def executor_for(node: PredictorNode) -> SingleThreadedExecutor:
-    """Return the executor the predictor's inputs are read in (module doc, "Threads")."""
+    """Return the executor of the predictor's plans, clock and parameters (module doc)."""
     return SingleThreadedExecutor(context=node.context)
 
 

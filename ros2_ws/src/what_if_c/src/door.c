@@ -35,6 +35,7 @@
 #include "hybrid_predictor_interfaces/srv/predict.h"
 
 #include "message_class.h"
+#include "rcl_check.h"
 
 #define MAX_CAPACITY 64
 
@@ -341,14 +342,6 @@ static void * door_main(void * arg)
   pthread_cond_broadcast(&d->waiting);
   pthread_mutex_unlock(&d->lock);
   return NULL;
-}
-
-static bool check_rcl(rcl_ret_t ret, const char * what)
-{
-  if (ret == RCL_RET_OK) {return true;}
-  PyErr_Format(PyExc_RuntimeError, "%s failed: %s", what, rcutils_get_error_string().str);
-  rcutils_reset_error();
-  return false;
 }
 
 static int Door_init(DoorObject * self, PyObject * args, PyObject * kwargs)

@@ -10,6 +10,9 @@ The predictor's parts in C over rcl, where the interpreter lock would hold them 
   busy answer arriving meanwhile waits).
 - ``outlet``: the node's forecasts published with the lock released while rcl hands
   them to the subscribers (rclpy holds it throughout).
+- ``inlet``: the node's inputs and plans, every topic's messages taken together in the
+  order DDS received them, waiting with the lock released (rclpy's executors cost a
+  100 Hz state's Python turn, or read one topic's queue ahead of another's).
 
 All are Python extensions rather than programs: the ROS wheels' librcl needs
 libraries that need the interpreter's symbols.
