@@ -406,7 +406,7 @@ def status(level: int, name: str, message: str, hardware_id: str,
 
 
 def executor_for(node: PredictorNode) -> SingleThreadedExecutor:
-    """Return the executor of the predictor's plans, clock and parameters (module doc)."""
+    """Return the executor of the predictor's clock, parameters and diagnostics (module doc)."""
     return SingleThreadedExecutor(context=node.context)
 
 
