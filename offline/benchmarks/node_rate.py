@@ -8,18 +8,23 @@ is preceded by the run's own next controls as a plan on the predictor's plan top
 a model-predictive controller sends them: a multirotor's rotor speeds held for a second
 overturn it, and such forecasts are withheld as beyond the vehicle's limits. A receiving
 thread takes every forecast as it arrives (a subscriber that lags would lose forecasts
-the node made), and each is timed from the moment its state was due to be published to its
-arrival: the publisher's own lateness counts against the node. Figures: the share of
-states forecast, p50/p99 of that delay, the node's own count of forecasts, and, with
-``busy_core``, the same beside a process that keeps one core busy. ``simulator_cost``
-measures the simulator node flying the vehicle at its rate: CPU per period, and the rate
-its state messages arrive at.
+the node made) in a process of its own (``rate_receiver.py``, as a controller is apart
+from its vehicle), and each is timed from the moment its state was due to be published
+to its arrival: the publisher's own lateness counts against the node. Arrival is when the
+receiver's callback runs (``p50_ms``, ``p99_ms``) and, beside it, when DDS received the
+forecast in that process (``p50_ms_at_receipt``, ``p99_ms_at_receipt``: the receiver's
+executor and its conversion to Python left out, as a controller in C++ would not pay
+them). Figures: the share of states forecast, p50/p99 of that delay, the node's own
+count of forecasts, and, with ``busy_core``, the same beside a process that keeps one
+core busy. ``simulator_cost`` measures the simulator node flying the vehicle at its rate:
+CPU per period, and the rate its state messages arrive at.
 """
 
 from __future__ import annotations
 
 import contextlib
 import io
+import json
 import os
 from pathlib import Path
 import subprocess
@@ -88,13 +93,12 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     from diagnostic_msgs.msg import DiagnosticArray
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
-    from rclpy.qos import QoSProfile
     from vessel_bringup.processes import Children, rclpy_options
 
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.node import FORECAST_TOPIC, PLAN_TOPIC
     from hybrid_predictor.replay import RunReplay
-    from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
+    from hybrid_predictor_interfaces.msg import ControlPlan
     from vessel_datasets.topic_map import topic_map_for
     from vessel_description import load_vessel
     from vessel_ros_bridge import messages as m
@@ -108,7 +112,6 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     table = flight.iloc[:rows]
     controls = flight[list(spec.control_names)].to_numpy(float)
     confine_dds()
-    arrivals: dict[float, float] = {}
     health: dict[str, str] = {}     # the predictor's latest /diagnostics values
     spinner = busy_process = None
     logs = Path(tempfile.mkdtemp(prefix='bench_rate_'))
@@ -120,14 +123,17 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
             predictor = children.node('hybrid_predictor', 'predictor', '--log-level', 'warn',
                                       params={'model_path': str(model), 'vessel': vehicle,
                                               'forecast_period': 0.0})
+        received = logs / 'received.json'
+        receiver_process = children.start([sys.executable, str(Path(__file__).with_name(
+            'rate_receiver.py')), str(received), str(rows)], 'receiver')
         rclpy.init(**rclpy_options())
         try:
             node = rclpy.create_node('bench_rate_client')
             replay = RunReplay(node, topic_map, m.message_types(topic_map))
 
             # In the nodes' namespace, where the predictor's relative topics resolve.
-            receiver = rclpy.create_node('bench_rate_receiver', namespace=DEFAULT_NAMESPACE)
-            plan_pub = receiver.create_publisher(ControlPlan, PLAN_TOPIC, 10)
+            watcher = rclpy.create_node('bench_rate_watcher', namespace=DEFAULT_NAMESPACE)
+            plan_pub = watcher.create_publisher(ControlPlan, PLAN_TOPIC, 10)
 
             # Made before the run, as the replay makes each row's messages before it is
             # due: what is timed is the node, not this process making messages.
@@ -142,21 +148,17 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
                 plan.header.stamp = m.stamp_from_seconds(stamp)
                 plan_pub.publish(plan)
 
-            receiver.create_subscription(
-                Forecast, FORECAST_TOPIC,
-                lambda msg: arrivals.setdefault(round(m.seconds_from_stamp(msg.header.stamp),
-                                                      6), time.time()),
-                QoSProfile(depth=rows))
-            receiver.create_subscription(
+            watcher.create_subscription(
                 DiagnosticArray, '/diagnostics', lambda msg: health.update(
                     {v.key: v.value for s in msg.status if 'predictor' in s.name
                      for v in s.values}), 10)
             executor = SingleThreadedExecutor()
-            executor.add_node(receiver)
+            executor.add_node(watcher)
             spinner = threading.Thread(target=_spin, args=(executor,), daemon=True)
             spinner.start()
             deadline = time.monotonic() + 180
-            while receiver.count_publishers(FORECAST_TOPIC) == 0 or \
+            while watcher.count_publishers(FORECAST_TOPIC) == 0 or \
+                    watcher.count_subscribers(FORECAST_TOPIC) == 0 or \
                     node.count_subscribers(replay.writer.topics[-1]) == 0:
                 if time.monotonic() > deadline:
                     return {'error': 'the predictor did not start within 180 s'}
@@ -170,6 +172,7 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
             time.sleep(1.0)                        # the last forecasts in flight
             cpu = cpu_seconds(predictor.pid) - cpu
             time.sleep(1.5)                        # its next /diagnostics
+            children.stop(receiver_process)        # writes what it received
         finally:
             if busy_process is not None:
                 busy_process.kill()
@@ -180,6 +183,9 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     # Due a forecast: every state from the one that completes the first window (row
     # window - 1) on; the node counts its forecasts from there too.
     stamps = [round(start + k / spec.rate_hz, 6) for k in range(window - 1, rows)]
+    noted = json.loads(received.read_text()) if received.is_file() else {}
+    arrivals, receipts = ({float(s): t for s, t in noted.get(kind, {}).items()}
+                          for kind in ('arrivals', 'receipts'))
     delays = np.array([arrivals[s] - s for s in stamps if s in arrivals]) * 1e3
     out = {'vehicle': vehicle, 'rate_hz': spec.rate_hz, 'states_timed': len(stamps),
            'forecasts_received': int(len(delays)),
@@ -199,9 +205,11 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     said = (logs / 'predictor.log').read_text(errors='replace').splitlines()
     out['predictor_warnings'] = sorted({line.split(': ', 1)[-1][:160] for line in said
                                         if 'WARN' in line or 'ERROR' in line})[:10]
-    if len(delays):
-        out.update(p50_ms=round(float(np.percentile(delays, 50)), 2),
-                   p99_ms=round(float(np.percentile(delays, 99)), 2))
+    for suffix, times in (('', arrivals), ('_at_receipt', receipts)):
+        waited = np.array([times[s] - s for s in stamps if s in times]) * 1e3
+        if len(waited):
+            out[f'p50_ms{suffix}'] = round(float(np.percentile(waited, 50)), 2)
+            out[f'p99_ms{suffix}'] = round(float(np.percentile(waited, 99)), 2)
     return out
 
 
