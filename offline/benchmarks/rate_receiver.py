@@ -28,13 +28,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
 
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.qos import QoSProfile
 
     from hybrid_predictor.node import FORECAST_TOPIC
     from hybrid_predictor_interfaces.msg import Forecast
     from vessel_ros_bridge import messages as m
-    from vessel_ros_bridge.names import DEFAULT_NAMESPACE
+    from vessel_ros_bridge.lifecycle import run_node
 
     arrivals: dict[float, float] = {}
     receipts: dict[float, float] = {}
@@ -44,21 +43,16 @@ def main(argv: list[str] | None = None) -> int:
         arrivals.setdefault(stamp, time.time())
         receipts.setdefault(stamp, info['received_timestamp'] * 1e-9)
 
-    rclpy.init()
-    node = rclpy.create_node('bench_rate_receiver', namespace=DEFAULT_NAMESPACE)
-    node.create_subscription(Forecast, FORECAST_TOPIC, on_forecast,
-                             QoSProfile(depth=args.depth))
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        rclpy.try_shutdown()
-        args.out.write_text(json.dumps({'arrivals': arrivals, 'receipts': receipts}))
-    return 0
+    def receiver(namespace: str):
+        node = rclpy.create_node('bench_rate_receiver', namespace=namespace)
+        node.create_subscription(Forecast, FORECAST_TOPIC, on_forecast,
+                                 QoSProfile(depth=args.depth))
+        return node
 
+    try:
+        return run_node(receiver, 'rate_receiver')   # in the nodes' namespace
+    finally:
+        args.out.write_text(json.dumps({'arrivals': arrivals, 'receipts': receipts}))
 
 if __name__ == '__main__':
     sys.exit(main())
