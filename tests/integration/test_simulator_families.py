@@ -181,6 +181,42 @@ def test_a_forecast_that_fails_is_counted_and_the_next_state_is_forecast(trained
     assert not node.forecasting.is_alive()
 
 
+def test_an_input_whose_reading_fails_is_counted_and_the_next_is_read(trained, ros_node):
+    # The inputs are read on a thread of their own: an exception there must not end it
+    # (the node would go on forecasting from a window that no longer fills).
+    from rclpy.parameter import Parameter
+
+    from hybrid_predictor.node import PredictorNode
+    from vessel_ros_bridge import messages
+
+    vessel, checkpoint = trained
+    node = PredictorNode(context=ros_node.context, parameter_overrides=[
+        Parameter('model_path', value=str(checkpoint)), Parameter('vessel', value=vessel)])
+    try:
+        state = node.core.window.state_topic
+        reader, calls = node.readers[state], []
+
+        def failing_once(msg):
+            calls.append(msg)
+            if len(calls) == 1:
+                raise RuntimeError('a fault of the reading')
+            return reader(msg)
+
+        node.readers[state] = failing_once
+        msg_class = messages.message_types(node.topic_map)[state]
+        publisher = ros_node.create_publisher(msg_class, node.resolved[state], 10)
+        assert spin_until(ros_node, lambda: publisher.get_subscription_count(), 10)
+        for _ in range(2):
+            publisher.publish(msg_class())
+            time.sleep(0.05)
+        assert wait_for(lambda: len(calls) == 2, 10), calls
+        assert node.reading.is_alive()
+        assert node.core.counts['input_failures'] == 1, node.core.counts
+    finally:
+        node.destroy_node()
+    assert not node.reading.is_alive()
+
+
 def test_the_predictor_reads_its_inputs_in_the_order_they_arrived(trained, ros_node):
     # A state topic the node cannot keep up with must not hold the others back: when the
     # inputs shared one callback group of a multi-threaded executor, the state topic won

@@ -174,7 +174,8 @@ class PredictorCore:
         self.input_event = threading.Event()
         self.counts = {'malformed_inputs': 0, 'plans_rejected': 0, 'states_skipped_as_backlog':
                        0, 'clock_resets': 0, 'service_failed': 0,
-                       'forecasts_before_sample_complete': 0, 'forecast_failures': 0}
+                       'forecasts_before_sample_complete': 0, 'forecast_failures': 0,
+                       'input_failures': 0}
         self.latest_plan: tuple | None = None
         self.pending: Pending | None = None
         # A scheduled state whose actuator or wind samples had not arrived when its wait

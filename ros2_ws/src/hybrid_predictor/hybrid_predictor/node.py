@@ -240,13 +240,21 @@ class PredictorNode(Node):
     # ------------------------------------------------------------------ inputs
     def _read_inputs(self, readers: list) -> None:
         """Take the inlet's messages in the order received until it closes (``inputs``)."""
-        try:
-            while (taken := self.inlet.take()) is not None:
-                for index, msg, received_ns in taken:
+        while True:
+            try:
+                taken = self.inlet.take()
+            except RuntimeError as exc:   # rcl failed: the health report then sees silence
+                if not self.stopping:
+                    self.get_logger().error(f'inputs stopped: {exc}')
+                return
+            if taken is None:
+                return
+            for index, msg, received_ns in taken:
+                try:
                     readers[index](msg, received_ns)
-        except Exception as exc:  # noqa: BLE001 - said; the health report then sees silence
-            if not self.stopping:
-                self.get_logger().error(f'inputs stopped: {exc!r}')
+                except Exception as exc:  # noqa: BLE001 - the next message is read anew
+                    self.core.count('input_failures')
+                    self._say('input_failed', f'reading an input failed: {exc!r}', error=True)
 
     def _on_input(self, topic: str, msg, received_ns: int = 0) -> None:
         """Store one input sample; ``received_ns``: its arrival (ns, system clock; 0: now)."""
