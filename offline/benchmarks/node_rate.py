@@ -186,7 +186,10 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     noted = json.loads(received.read_text()) if received.is_file() else {}
     arrivals, receipts = ({float(s): t for s, t in noted.get(kind, {}).items()}
                           for kind in ('arrivals', 'receipts'))
-    delays = np.array([arrivals[s] - s for s in stamps if s in arrivals]) * 1e3
+    # Each forecast's delay (ms) to its callback and to its receipt by DDS.
+    waits = {suffix: np.array([times[s] - s for s in stamps if s in times]) * 1e3
+             for suffix, times in (('', arrivals), ('_at_receipt', receipts))}
+    delays = waits['']
     out = {'vehicle': vehicle, 'rate_hz': spec.rate_hz, 'states_timed': len(stamps),
            'forecasts_received': int(len(delays)),
            'share_received': round(len(delays) / len(stamps), 3), 'busy_core': busy,
@@ -205,8 +208,7 @@ def measure(model: Path, vehicle: str, samples: int, busy: bool = False,
     said = (logs / 'predictor.log').read_text(errors='replace').splitlines()
     out['predictor_warnings'] = sorted({line.split(': ', 1)[-1][:160] for line in said
                                         if 'WARN' in line or 'ERROR' in line})[:10]
-    for suffix, times in (('', arrivals), ('_at_receipt', receipts)):
-        waited = np.array([times[s] - s for s in stamps if s in times]) * 1e3
+    for suffix, waited in waits.items():
         if len(waited):
             out[f'p50_ms{suffix}'] = round(float(np.percentile(waited, 50)), 2)
             out[f'p99_ms{suffix}'] = round(float(np.percentile(waited, 99)), 2)

@@ -54,5 +54,6 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         args.out.write_text(json.dumps({'arrivals': arrivals, 'receipts': receipts}))
 
+
 if __name__ == '__main__':
     sys.exit(main())

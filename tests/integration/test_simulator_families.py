@@ -103,6 +103,18 @@ def trained(request, tmp_path_factory):
     return vessel, root / 'run' / 'model.safetensors'
 
 
+def predictor_of(trained, ros_node, **params):
+    """Return an in-process PredictorNode of ``trained`` (vessel, checkpoint) and ``params``."""
+    from rclpy.parameter import Parameter
+
+    from hybrid_predictor.node import PredictorNode
+
+    vessel, checkpoint = trained
+    values = {'model_path': str(checkpoint), 'vessel': vessel, **params}
+    return PredictorNode(context=ros_node.context, parameter_overrides=[
+        Parameter(name, value=value) for name, value in values.items()])
+
+
 def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launcher,
                                                                   ros_node):
     from hybrid_predictor_interfaces.msg import Forecast
@@ -152,13 +164,7 @@ def test_the_predictor_forecasts_from_the_simulator_of_its_vessel(trained, launc
 def test_a_forecast_that_fails_is_counted_and_the_next_state_is_forecast(trained, ros_node):
     # Forecasting runs on a thread of its own: an exception there must not end it (the
     # node would go on reading inputs and never forecast again).
-    from rclpy.parameter import Parameter
-
-    from hybrid_predictor.node import PredictorNode
-
-    vessel, checkpoint = trained
-    node = PredictorNode(context=ros_node.context, parameter_overrides=[
-        Parameter('model_path', value=str(checkpoint)), Parameter('vessel', value=vessel)])
+    node = predictor_of(trained, ros_node)
     try:
         calls = []
 
@@ -184,14 +190,9 @@ def test_a_forecast_that_fails_is_counted_and_the_next_state_is_forecast(trained
 def test_an_input_whose_reading_fails_is_counted_and_the_next_is_read(trained, ros_node):
     # The inputs are read on a thread of their own: an exception there must not end it
     # (the node would go on forecasting from a window that no longer fills).
-    from rclpy.parameter import Parameter
-
-    from hybrid_predictor.node import PredictorNode
     from vessel_ros_bridge import messages
 
-    vessel, checkpoint = trained
-    node = PredictorNode(context=ros_node.context, parameter_overrides=[
-        Parameter('model_path', value=str(checkpoint)), Parameter('vessel', value=vessel)])
+    node = predictor_of(trained, ros_node)
     try:
         state = node.core.window.state_topic
         reader, calls = node.readers[state], []
@@ -224,16 +225,10 @@ def test_the_predictor_reads_its_inputs_in_the_order_they_arrived(trained, ros_n
     # silent for 2.8 s" behind this simulator at 4x on a loaded machine); rclpy's events
     # executor read a backlog of states ahead of an actuators message sent amid them.
     # With a backlog queued while the node is busy, every message is read in the order sent.
-    from rclpy.parameter import Parameter
-
-    from hybrid_predictor.node import PredictorNode
     from vessel_ros_bridge import messages
 
-    vessel, checkpoint = trained
     backlog, after = 40, 5
-    node = PredictorNode(context=ros_node.context, parameter_overrides=[
-        Parameter('model_path', value=str(checkpoint)), Parameter('vessel', value=vessel),
-        Parameter('input_queue_depth', value=backlog + after + 10)])
+    node = predictor_of(trained, ros_node, input_queue_depth=backlog + after + 10)
     busy = threading.Event()   # the node's first read holds it up until all is sent
     try:
         read = []
