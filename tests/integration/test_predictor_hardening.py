@@ -410,13 +410,23 @@ def test_an_unbounded_model_is_a_warning_unless_the_user_allowed_it(tmp_path):
         for k in range(int(WINDOW_S) + 5):
             for feeder in feeders:
                 feeder.sample(now - WINDOW_S - 5 + k)
-        while time.monotonic() < deadline and not all(len(f) >= 4 for f in forecasts.values()):
+
+        def reported(ns):
+            # A status published before the node's first forecast says "waiting for input";
+            # the one judged must be of a node that has forecast.
+            status = statuses.get(f'/{ns}/predictor: forecast')
+            values = {} if status is None else {kv.key: kv.value for kv in status.values}
+            return int(values.get('forecasts_published', '0')) > 0
+
+        while time.monotonic() < deadline and not all(
+                len(forecasts[ns]) >= 4 and reported(ns) for ns in forecasts):
             for feeder in feeders:
                 feeder.sample(time.time())
             end = time.monotonic() + 0.2
             while time.monotonic() < end:
                 executor.spin_once(timeout_sec=0.05)
         assert all(len(f) >= 4 for f in forecasts.values()), launcher.processes[0].output()
+        assert all(reported(ns) for ns in forecasts), statuses
         for ns in forecasts:
             assert not forecasts[ns][-1].bounded
             assert math.isnan(forecasts[ns][-1].relative_threshold)
