@@ -52,6 +52,9 @@ run python docs/results/real/analysis/study_by_fold.py "$WORK/snuboat_bykind" \
 # Are the held-out kinds new to the correction, and does its bound matter there (issue #47)?
 run python docs/results/real/analysis/unseen_kind_probe.py "$WORK/snuboat_bykind" hybrid \
   "$OUT/bykind" > /dev/null
+# Would a correction faded by its own hindsight (the run's matured forecasts) do better?
+run python docs/results/real/analysis/hindsight_guard_probe.py "$WORK/snuboat_bykind" hybrid \
+  "$OUT/bykind" > /dev/null
 # Cross-validated bands (docs/results/real/bands.md): five folds x five seeds of the
 # hybrid, folds dealt by samples (the default; fold seeds 0 and 1) and by count of
 # recordings (the former dealing); bands calibrated on each study's out-of-fold
