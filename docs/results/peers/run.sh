@@ -64,6 +64,10 @@ if has bykind; then
     --model lstm=$CONFIGS/lstm.yaml --model hybrid=$CONFIGS/hybrid.yaml
   peers snuboat_bykind 'snuboat, manoeuvre kinds held out' 3 '--quick --epochs-scale 0.125' \
     --study "$WORK/snuboat_bykind_ours"
+  # Ours per fold (kind): the pooled table hides the kind a model fails on.
+  run python docs/results/real/analysis/study_by_fold.py "$WORK/snuboat_bykind_ours" \
+    "$WORK/res/snuboat_bykind" > /dev/null
+  cp "$WORK/res/snuboat_bykind/by_fold.md" "$OUT/snuboat_bykind/ours_by_fold.md"
 fi
 if has patrol; then
   # The Table-2 setting (the patrol boat's simulator, 1 h runs at 1 Hz, split 60/10/30,
