@@ -77,17 +77,15 @@ DIAGNOSIS_TOLERANCE = 0.02
 # seed-0 held-out trajectory error must stay within STUDY_TOLERANCE of the committed
 # seed 0's, and each hybrid among them must stay better than its physics alone (and no
 # worse at any reported step).
+SNUBOAT_MODELS = ['--model', 'hybrid=docs/results/real/configs/hybrid.yaml',
+                  '--model', 'lstm=docs/results/real/configs/lstm.yaml']
 STUDIES = {
     'snuboat_heldout': ('snuboat', 'docs/results/real/snuboat/heldout/results.json',
-                        'crossval', ['--model', 'hybrid=docs/results/real/configs/hybrid.yaml',
-                                     '--model', 'lstm=docs/results/real/configs/lstm.yaml'],
-                        ['hybrid', 'lstm', 'hyd physics']),
+                        'crossval', SNUBOAT_MODELS, ['hybrid', 'lstm', 'hyd physics']),
     # Manoeuvre kinds held out (three folds, three seeds committed): the hybrid no worse
     # than its physics on kinds it never trained on (issue #47).
     'snuboat_bykind': ('snuboat', 'docs/results/real/snuboat/bykind/results.json',
-                       'crossval', ['--fold-by', 'FREE_RUNNING_(7|8|TURNING)',
-                                    '--model', 'hybrid=docs/results/real/configs/hybrid.yaml',
-                                    '--model', 'lstm=docs/results/real/configs/lstm.yaml'],
+                       'crossval', ['--fold-by', 'FREE_RUNNING_(7|8|TURNING)', *SNUBOAT_MODELS],
                        ['hybrid', 'lstm', 'hyd physics']),
     'kvlcc2_heldout_warm': ('kvlcc2_hsva', 'docs/results/real/kvlcc2/heldout_warm/results.json',
                             'workflow', ['--hybrid', 'docs/results/real/configs/hybrid_mmg.yaml'],

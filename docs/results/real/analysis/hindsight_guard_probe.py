@@ -106,9 +106,9 @@ def probe(study: Path, label: str) -> dict:
         physics = predict(PhysicsOnly(members[-1].physical), windows)
         scale = windows.z_target.reshape(-1, spec.n_state).std(axis=0)
         for seed in seeds:
+            chosen = members if seed == ENSEMBLE else [members[seeds.index(seed)]]
             preds = []
             for gain in GAINS:
-                chosen = members if seed == ENSEMBLE else [members[seeds.index(seed)]]
                 with ExitStack() as stack:
                     for m in chosen:
                         stack.enter_context(gained(m, gain))
