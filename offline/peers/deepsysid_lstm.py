@@ -35,7 +35,6 @@ from __future__ import annotations
 import logging
 import random
 import sys
-import time
 
 import numpy as np
 import peer_io
@@ -72,21 +71,27 @@ def fit(problem: peer_io.Problem, point: dict, seed: int, scale_epochs: float):
     random.seed(seed)
     np.random.seed(seed)
     torch.manual_seed(seed)
-    settings = dict(STATIC)
-    settings['batch_size'] = int(max(8, min(256, _sequences(problem.train,
-                                                            STATIC['sequence_length']) // 4)))
-    for key in ('epochs_initializer', 'epochs_predictor'):
-        settings[key] = max(1, int(round(STATIC[key] * scale_epochs)))
+    static = settings(problem, scale_epochs)
     keep = constant_free(problem.train)
     config = config_class(device_name='cpu',
                           control_names=[n for n, k in zip(problem.control_names, keep,
                                                            strict=True) if k],
                           state_names=problem.state_names, time_delta=problem.dt,
-                          **settings, **point)
+                          **static, **point)
     model = model_class(config)
     model.train([c[:-1, keep] for _, c in problem.train], [z[1:] for z, _ in problem.train])
     model.peer_controls = keep
-    return model, settings
+    return model, static
+
+
+def settings(problem: peer_io.Problem, scale_epochs: float) -> dict:
+    """Their static settings for this problem: the batch fitted to it, the epochs scaled."""
+    static = dict(STATIC)
+    static['batch_size'] = int(max(8, min(256, _sequences(problem.train,
+                                                          STATIC['sequence_length']) // 4)))
+    for key in ('epochs_initializer', 'epochs_predictor'):
+        static[key] = max(1, int(round(STATIC[key] * scale_epochs)))
+    return static
 
 
 def constant_free(runs: list) -> np.ndarray:
@@ -107,44 +112,34 @@ def forecast(model, windows: dict) -> np.ndarray:
 
 def solve(problem: peer_io.Problem, args, say) -> dict:
     """Tune on validation with seed 0, then train the chosen point with every seed."""
-    scale = peer_io.state_scale(problem.train)
     grid = [DEFAULT] if args.quick else GRID
     seeds = problem.seeds
-    tried, best = [], None
-    t_tune = time.monotonic()
-    for point in grid:
-        t0 = time.monotonic()
-        model, settings = fit(problem, point, seeds[0], args.epochs_scale)
-        seconds = time.monotonic() - t0
-        score = peer_io.validation_score(forecast(model, problem.val_windows),
-                                         problem.val_windows['z_target'], scale)
-        tried.append({**point, 'val_score': score, 'fit_seconds': round(seconds, 1)})
-        say(f"recurrent_dim {point['recurrent_dim']}, {point['num_recurrent_layers']} layers: "
-            f'validation score {score:.4g} ({seconds:.0f} s, batch {settings["batch_size"]})')
-        if best is None or score < best[0]:
-            best = (score, point, model, seconds)
-    tuning = time.monotonic() - t_tune
-    _, point, first, first_seconds = best
+
+    def fit_first(point):
+        model, static = fit(problem, point, seeds[0], args.epochs_scale)
+        return model, {'batch_size': static['batch_size']}
+
+    tuned = peer_io.tune(grid, fit_first, forecast, problem, say)
     preds, fits, fcs = [], [], []
     for i, seed in enumerate(seeds):
         if i == 0:
-            model, seconds = first, first_seconds
+            model, seconds = tuned.model, tuned.fit_seconds
         else:
-            t0 = time.monotonic()
-            model, _ = fit(problem, point, seed, args.epochs_scale)
-            seconds = time.monotonic() - t0
-        t0 = time.monotonic()
-        preds.append(forecast(model, problem.test_windows))
-        fcs.append(time.monotonic() - t0)
+            (model, _), seconds = peer_io.timed(fit, problem, tuned.point, seed,
+                                                args.epochs_scale)
+        pred, forecast_seconds = peer_io.timed(forecast, model, problem.test_windows)
+        preds.append(pred)
         fits.append(seconds)
+        fcs.append(forecast_seconds)
         say(f'seed {seed}: trained in {seconds:.0f} s, forecast in {fcs[-1]:.1f} s')
     return {'pred': np.stack(preds), 'seeds': seeds, 'fit_seconds': fits,
             'forecast_seconds': fcs,
             'meta': {'peer': 'deepsysid LSTMInitModel (Baier et al.)',
                      'package': 'deepsysid', 'version': '0.1.24 (commit 6b0001c)',
-                     'static': settings, 'epochs_scale': args.epochs_scale,
-                     'defaults': DEFAULT, 'grid': tried, 'chosen': point,
-                     'tuning_seconds': tuning, 'stochastic': True,
+                     'static': settings(problem, args.epochs_scale),
+                     'epochs_scale': args.epochs_scale,
+                     'defaults': DEFAULT, 'grid': tuned.grid, 'chosen': tuned.point,
+                     'tuning_seconds': tuned.seconds, 'stochastic': True,
                      'controls_left_out': [n for n, k in zip(
                          problem.control_names, constant_free(problem.train), strict=True)
                          if not k]}}

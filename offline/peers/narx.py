@@ -29,7 +29,6 @@ reported as diverged (NaN from there on).
 from __future__ import annotations
 
 import sys
-import time
 import warnings
 
 import numpy as np
@@ -176,38 +175,26 @@ class JointNarx:
 def solve(problem: peer_io.Problem, args, say) -> dict:
     """Fit, tune on validation, forecast the test windows."""
     import sysidentpy
-    scale = peer_io.state_scale(problem.train)
     grid = [DEFAULT] if args.quick else GRID
-    tried, best = [], None
-    t_tune = time.monotonic()
-    for point in grid:
-        t0 = time.monotonic()
+
+    def fit(point):
         model = JointNarx(point, problem.train)
-        fit = time.monotonic() - t0
-        score = peer_io.validation_score(model.forecast(problem.val_windows),
-                                         problem.val_windows['z_target'], scale)
-        tried.append({**point, 'val_score': score, 'terms': model.n_terms(),
-                      'fit_seconds': round(fit, 3)})
-        say(f"degree {point['degree']}, lag {point['lag']}, {point['estimator']}: "
-            f'{model.n_terms()} terms, validation score {score:.4g} ({fit:.1f} s)')
-        if best is None or score < best[0]:
-            best = (score, point, model, fit)
-    tuning = time.monotonic() - t_tune
-    _, point, model, fit = best
+        return model, {'terms': model.n_terms()}
+
+    tuned = peer_io.tune(grid, fit, lambda model, w: model.forecast(w), problem, say)
+    point, model = tuned.point, tuned.model
     check = model.check_one_step(problem.train)
     say(f'decoded terms against SysIdentPy one step ahead: largest difference {check:.2e}')
     if not check < 1e-6 * (1.0 + float(np.abs(problem.train[0][0]).max())):
         raise peer_io.PeerError(f'decoded NARX differs from SysIdentPy by {check:.3g}')
-    t0 = time.monotonic()
-    pred = model.forecast(problem.test_windows)
-    seconds = time.monotonic() - t0
+    pred, seconds = peer_io.timed(model.forecast, problem.test_windows)
     say(f'chosen {point}; forecast {len(pred)} test windows in {seconds:.1f} s')
-    return {'pred': pred[None], 'seeds': [0], 'fit_seconds': [fit],
+    return {'pred': pred[None], 'seeds': [0], 'fit_seconds': [tuned.fit_seconds],
             'forecast_seconds': [seconds],
             'meta': {'peer': 'SysIdentPy FROLS polynomial NARX, one MISO model per state',
                      'package': 'sysidentpy', 'version': sysidentpy.__version__,
-                     'defaults': DEFAULT, 'grid': tried, 'chosen': point,
-                     'terms': model.n_terms(), 'tuning_seconds': tuning,
+                     'defaults': DEFAULT, 'grid': tuned.grid, 'chosen': point,
+                     'terms': model.n_terms(), 'tuning_seconds': tuned.seconds,
                      'one_step_check': check, 'stochastic': False,
                      'model': [[(theta, factors) for theta, factors in t]
                                for t in model.terms]}}

@@ -162,6 +162,48 @@ def limited(pred: np.ndarray, bound: float = 1e6) -> np.ndarray:
     return pred
 
 
+def timed(fn, *args):
+    """Return ``fn(*args)`` and the seconds it took."""
+    t0 = time.monotonic()
+    out = fn(*args)
+    return out, time.monotonic() - t0
+
+
+@dataclass
+class Tuned:
+    """The grid point chosen by validation score, its model and how the grid went."""
+
+    point: dict
+    model: object
+    fit_seconds: float       # the chosen point's fit
+    grid: list[dict]         # every point with its notes, val_score and fit_seconds
+    seconds: float           # the whole tuning
+
+
+def tune(grid: list[dict], fit, forecast, problem: Problem, say) -> Tuned:
+    """
+    Fit every grid point on the training runs; keep the one of lowest validation score.
+
+    ``fit(point)`` returns ``(model, notes)``: ``notes`` (a dict, e.g. the model's term
+    count) joins the point's row of the grid and its progress line;
+    ``forecast(model, windows)`` forecasts windows open loop (``validation_score``).
+    """
+    scale = state_scale(problem.train)
+    tried, best = [], None
+    started = time.monotonic()
+    for point in grid:
+        (model, notes), seconds = timed(fit, point)
+        score = validation_score(forecast(model, problem.val_windows),
+                                 problem.val_windows['z_target'], scale)
+        tried.append({**point, **notes, 'val_score': score, 'fit_seconds': round(seconds, 3)})
+        described = ', '.join(f'{k} {v}' for k, v in {**point, **notes}.items())
+        say(f'{described}: validation score {score:.4g} ({seconds:.1f} s)')
+        if best is None or score < best[0]:
+            best = (score, point, model, seconds)
+    _, point, model, seconds = best
+    return Tuned(point, model, seconds, tried, time.monotonic() - started)
+
+
 class Progress:
     """Lines on stderr, prefixed with the adapter's name and the seconds since start."""
 

@@ -20,7 +20,6 @@ that leaves |x| > 1e6 or stops being finite is reported as diverged (NaN from th
 from __future__ import annotations
 
 import sys
-import time
 
 import numpy as np
 import peer_io
@@ -74,33 +73,21 @@ def _sd(x: np.ndarray) -> np.ndarray:
 def solve(problem: peer_io.Problem, args, say) -> dict:
     """Fit, tune on validation, forecast the test windows."""
     import pysindy
-    scale = peer_io.state_scale(problem.train)
     grid = [DEFAULT] if args.quick else GRID
-    tried, best = [], None
-    t_tune = time.monotonic()
-    for point in grid:
-        t0 = time.monotonic()
+
+    def fit(point):
         model = Scaled(point, problem.train)
-        fit = time.monotonic() - t0
-        score = peer_io.validation_score(model.forecast(problem.val_windows),
-                                         problem.val_windows['z_target'], scale)
-        tried.append({**point, 'val_score': score, 'terms': model.terms(),
-                      'fit_seconds': round(fit, 3)})
-        say(f'degree {point["degree"]}, threshold {point["threshold"]}: '
-            f'{model.terms()} terms, validation score {score:.4g} ({fit:.1f} s)')
-        if best is None or score < best[0]:
-            best = (score, point, model, fit)
-    tuning = time.monotonic() - t_tune
-    _, point, model, fit = best
-    t0 = time.monotonic()
-    pred = model.forecast(problem.test_windows)
-    seconds = time.monotonic() - t0
+        return model, {'terms': model.terms()}
+
+    tuned = peer_io.tune(grid, fit, lambda model, w: model.forecast(w), problem, say)
+    point, model = tuned.point, tuned.model
+    pred, seconds = peer_io.timed(model.forecast, problem.test_windows)
     say(f'chosen {point}; forecast {len(pred)} test windows in {seconds:.1f} s')
-    return {'pred': pred[None], 'seeds': [0], 'fit_seconds': [fit],
+    return {'pred': pred[None], 'seeds': [0], 'fit_seconds': [tuned.fit_seconds],
             'forecast_seconds': [seconds],
             'meta': {'peer': 'PySINDy DiscreteSINDy (SINDYc)', 'package': 'pysindy',
-                     'version': pysindy.__version__, 'defaults': DEFAULT, 'grid': tried,
-                     'chosen': point, 'terms': model.terms(), 'tuning_seconds': tuning,
+                     'version': pysindy.__version__, 'defaults': DEFAULT, 'grid': tuned.grid,
+                     'chosen': point, 'terms': model.terms(), 'tuning_seconds': tuned.seconds,
                      'stochastic': False,
                      'notes': 'states and controls scaled on the training runs; '
                               'z[t+1] = Theta(z[t], c[t]) Xi, open loop'}}

@@ -100,6 +100,24 @@ def test_problem_round_trip_and_history(tmp_path):
         _peer_io().read_problem(tmp_path / 'bad.npz')
 
 
+def test_tuning_keeps_the_point_of_lowest_validation_score(tmp_path):
+    peer_io = _peer_io()
+    _problem(tmp_path / 'p.npz')
+    problem = peer_io.read_problem(tmp_path / 'p.npz')
+    offsets = {'exact': 0.0, 'off': 0.5, 'diverged': np.nan}
+    lines = []
+    tuned = peer_io.tune([{'name': n} for n in offsets],
+                         lambda point: (point['name'], {'terms': len(point['name'])}),
+                         lambda name, windows: windows['z_target'] + offsets[name],
+                         problem, lines.append)
+    assert tuned.point == {'name': 'exact'} and tuned.model == 'exact'
+    assert [row['val_score'] for row in tuned.grid] == [0.0, pytest.approx(
+        (0.5 / peer_io.state_scale(problem.train)).sum()), float('inf')]
+    assert [row['terms'] for row in tuned.grid] == [5, 3, 8]
+    assert tuned.seconds >= tuned.fit_seconds >= 0 and len(lines) == 3
+    assert lines[1].startswith('name off, terms 3: validation score')
+
+
 @pytest.mark.parametrize('script', ['narx.py', 'sindy.py', 'deepsysid_lstm.py'])
 def test_help_and_a_one_line_error(tmp_path, script):
     if not BENCH_PYTHON.exists():
