@@ -16,7 +16,8 @@ Forecast speed of the default model, all figures measured in one run.
   forecast per state message, idle and beside a busy core, and the floor: the same
   replay and receiver against a node that answers at once (``node_rate``);
 - what-if: a planner's request of 1,000 plans x 100 steps answered by the predictor's
-  own code, stage by stage, without DDS (``what_if``);
+  own code, stage by stage, without DDS (``what_if``), of the default model or another
+  (``--what-if-model``, fed from a recording of its vessel with ``--what-if-dataset``);
 - gpu: the engine's single and batch figures on the GPU where jax sees one, and the
   largest difference of its forecasts from the CPU's; where it sees none, why;
 - precision (``--precision-dataset DIR``): the model's test forecasts of a dataset (its
@@ -83,6 +84,12 @@ def add_arguments(parser) -> None:
                              '(1000; 0 leaves it out)')
     parser.add_argument('--what-if-steps', type=int, default=100,
                         help='steps of each what-if plan (100)')
+    parser.add_argument('--what-if-model', type=Path, default=None,
+                        help="the what-if's checkpoint (default: --model)")
+    parser.add_argument('--what-if-dataset', type=Path, default=None,
+                        help='a recording of its vessel that feeds the predictor (needed '
+                             'where the simulator has no physics of it, e.g. the snuboat; '
+                             'default: a simulated run)')
     parser.add_argument('--precision-dataset', type=Path, default=None,
                         help="a dataset whose test forecasts are compared in float32 and "
                              "float64 (the default model's: data/ship96 of its model card)")
@@ -345,7 +352,8 @@ def run(args) -> dict:
     if not args.skip_node:
         result.update(node_latency(path, args.node_samples))
     if args.what_if_plans:
-        result['what_if'] = what_if_stages(path, args.what_if_plans, args.what_if_steps)
+        result['what_if'] = what_if_stages(args.what_if_model or path, args.what_if_plans,
+                                           args.what_if_steps, dataset=args.what_if_dataset)
         result['what_if_answer_ms'] = result['what_if']['answer_ms']
     if not args.skip_rate:
         from hybrid_predictor.node import default_model_path

@@ -96,6 +96,9 @@ def add_arguments(parser) -> None:
                         help='requests each client keeps in flight (default 8)')
     parser.add_argument('--plans', type=int, default=64,
                         help='control plans per request (default 64)')
+    parser.add_argument('--steps', type=positive_int, default=HORIZON,
+                        help="forecast steps of every plan, the predictor's horizon "
+                             f"(default {HORIZON}: the patrol boat's 15 minutes)")
     parser.add_argument('--plan-period', type=float, default=10.0,
                         help='seconds each plan row holds; 0: one row a forecast step '
                              '(default 10)')
@@ -124,7 +127,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> dict:
     """Run the soak with the command line's figures; return the JSON-ready result."""
-    shape = RequestShape(args.plans, args.plan_period, args.answer_period)
+    shape = RequestShape(args.plans, args.plan_period, args.answer_period, args.steps)
     if args.clients % args.client_processes:
         raise SystemExit(f'soak: error: --clients {args.clients} cannot be spread evenly '
                          f'over --client-processes {args.client_processes}')
@@ -135,11 +138,12 @@ def run(args) -> dict:
 
 @dataclass(frozen=True)
 class RequestShape:
-    """What every soak request holds: plans, s a plan row holds, s between answer steps."""
+    """What every request holds: plans, s a row holds, s between answer steps, steps."""
 
     plans: int = 64
     plan_period: float = 10.0
     answer_period: float = 10.0
+    steps: int = HORIZON
 
 
 MEMORY_PARTS = ('VmRSS', 'RssAnon', 'RssShmem')
@@ -169,14 +173,14 @@ def growth(before: dict[str, float], after: dict[str, float], part: str) -> floa
     return round(100.0 * (after[part] - before[part]) / before[part], 2)
 
 
-def make_plans(count: int, period: float = 0.0, seed: int = 0):
-    """Return ``count`` ControlPlans of steady shaft and rudder, rows of ``period`` s."""
+def make_plans(count: int, period: float = 0.0, seed: int = 0, steps: int = HORIZON):
+    """Return ``count`` ControlPlans of ``steps`` steps of steady shaft and rudder."""
     from hybrid_predictor.plan_message import control_plan
     from hybrid_predictor.plans import plan_length
     from vessel_description import load_vessel
 
     boat = load_vessel('patrol_boat')
-    _, rows = plan_length(HORIZON, period, boat.dt, '--plan-period')
+    _, rows = plan_length(steps, period, boat.dt, '--plan-period')
     rng = np.random.default_rng(seed)
     plans = []
     for _ in range(count):
@@ -190,7 +194,8 @@ def make_request(shape: RequestShape):
     """Return the Predict.Request every soak client sends."""
     from hybrid_predictor_interfaces.srv import Predict
 
-    return Predict.Request(plans=make_plans(shape.plans, shape.plan_period),
+    return Predict.Request(plans=make_plans(shape.plans, shape.plan_period,
+                                            steps=shape.steps),
                            answer_period=shape.answer_period)
 
 
@@ -375,7 +380,8 @@ class ProcessLoads:
         else:
             command = [sys.executable, str(Path(__file__).resolve()), 'client', *each,
                        '--plans', str(shape.plans), '--plan-period', str(shape.plan_period),
-                       '--answer-period', str(shape.answer_period)]
+                       '--answer-period', str(shape.answer_period),
+                       '--steps', str(shape.steps)]
         self.processes = [children.start([*command, '--name', f'client{k}'], f'soak_client{k}')
                           for k in range(processes)]
         self.merged: Merged | None = None
@@ -423,6 +429,7 @@ def client_main(argv: list[str]) -> int:
     parser.add_argument('--plans', type=positive_int, required=True)
     parser.add_argument('--plan-period', type=float, required=True)
     parser.add_argument('--answer-period', type=float, required=True)
+    parser.add_argument('--steps', type=positive_int, required=True)
     parser.add_argument('--busy-backoff', type=backoff, required=True)
     parser.add_argument('--dir', type=Path, required=True, help='where to meet the soak')
     parser.add_argument('--name', required=True)
@@ -434,7 +441,7 @@ def client_main(argv: list[str]) -> int:
     executor = staged_executor(2, context)
     executor.add_node(node)
     load = Load(node, args.clients, args.concurrency,
-                RequestShape(args.plans, args.plan_period, args.answer_period),
+                RequestShape(args.plans, args.plan_period, args.answer_period, args.steps),
                 args.busy_backoff)
     threading.Thread(target=executor.spin, daemon=True).start()
     try:
@@ -546,7 +553,7 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     children.node('ship_sim_node', 'simulator', params={'seed': 5, 'real_time_factor': rtf})
     extra = [arg for p in predictor_params for arg in ('-p', p)]
     predictor = children.node('hybrid_predictor', 'predictor', *extra, params={
-        'use_sim_time': True, 'max_plans': max(shape.plans, 1),
+        'use_sim_time': True, 'max_plans': max(shape.plans, 1), 'horizon': shape.steps,
         'forecast_period': forecast_period})
     # This process asks as a controller would, with the what-if client's profile: set
     # after the nodes started, so they keep their own.
@@ -625,6 +632,7 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'duration_s': round(ended - started, 1),
         'busy_stages_ms': stage_figures(counted.busy_stages),
         'clients': clients, 'concurrency': concurrency, 'plans_per_request': shape.plans,
+        'steps_per_plan': shape.steps,
         'plan_period_s': shape.plan_period, 'answer_period_s': shape.answer_period,
         'request_kb': counted.request_kb,
         'success_answer_kb': counted.success_answer_kb,

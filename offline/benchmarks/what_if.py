@@ -1,17 +1,19 @@
 """
 A planner's what-if in the predictor's own code, stage by stage (no DDS): many plans at once.
 
-A ``PredictorCore`` of the model is fed a simulated run of its vessel (actuators held
-mid-range) as its input callbacks would be, then asked ``what_if`` for ``plans`` plans of
-``steps`` steps, each actuator drawn at random each step within a tenth of its range
-of the mid-range it was held at (a planner's candidates about its operating point;
-over the whole range, per-second draws make the default model's forecasts diverge for
-four plans in ten, which the predictor withholds, refusing the request)
-(the request a sampling planner sends: 1,000 plans x 100 steps). Timed, median of
-``repeats``: the whole answer (plan checks, the forecast with the wind held over the
-earth, the published frames and bands, the Forecast messages) and its stages, with the
-engine's single pass over the batch as the compute alone. What DDS adds on top (the
-request's and the answer's bytes) is the soak's to measure.
+A ``PredictorCore`` of the model is fed a run of its vessel as its input callbacks would
+be (their channels, without the messages, so a vessel's own message types need not be
+built): simulated with the actuators held mid-range, or, for a vessel the simulator has
+no physics for (the snuboat), the first rows of the longest test run of a recording
+(``dataset``). Then it is asked ``what_if`` for ``plans`` plans of ``steps`` steps, each
+actuator drawn at random each step within a tenth of its range of its mid-range (a
+planner's candidates about its operating point; over the whole range, per-second draws
+make the default model's forecasts diverge for four plans in ten, which the predictor
+withholds) (the request a sampling planner sends: 1,000 plans x 100 steps). Timed,
+median of ``repeats``: the whole answer (plan checks, the forecast with the wind held
+over the earth, the published frames and bands, the Forecast messages) and its stages,
+with the engine's single pass over the batch as the compute alone. What DDS adds on top
+(the request's and the answer's bytes) is the soak's to measure.
 """
 
 from __future__ import annotations
@@ -32,7 +34,34 @@ def _median_ms(fn, repeats: int) -> float:
     return round(1e3 * float(np.median(times)), 1)
 
 
-def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
+def fed_samples(vessel, held: dict, dataset=None) -> list[dict]:
+    """
+    Return the SECONDS samples fed to the core: simulated, or a recording's (see module doc).
+
+    Each sample maps 't' (s), the states, the pose and the actuators to floats.
+    """
+    if dataset is None:
+        from vessel_physics.errors import ConfigError
+        from vessel_physics.simulation.config import load_simulation
+        from vessel_physics.simulation.simulator import Simulator
+        try:
+            sim = Simulator(load_simulation(vessel=vessel.name), n_runs=1, seed=3)
+        except ConfigError as exc:
+            raise SystemExit(f'what-if: {exc}; give a recording of it (--what-if-dataset)'
+                             ) from None
+        samples = [sim.sample()]
+        for _ in range(SECONDS - 1):
+            samples.append(sim.advance(held))
+        return [{k: float(v[0]) for k, v in sample.items()} for sample in samples]
+    from vessel_datasets.format import read_dataset
+    recording = read_dataset(dataset)
+    runs = [recording.load(run) for run in recording.run_ids('test')]
+    if not runs:
+        raise SystemExit(f'what-if: {dataset} has no test run to feed the predictor')
+    return max(runs, key=len).iloc[:SECONDS].to_dict('records')
+
+
+def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None) -> dict:
     """Return the what-if's figures for ``plans`` plans of ``steps`` steps (ms, medians)."""
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.core import PredictorCore
@@ -42,10 +71,7 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
     from hybrid_predictor.plans import check_plan_messages
     from hybrid_predictor.re_forecast import predictor_defaults
     from vessel_datasets.topic_map import topic_map_for
-    from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
-    from vessel_physics.simulation.config import load_simulation
-    from vessel_physics.simulation.simulator import Simulator
-    from vessel_ros_bridge import messages as m
+    from vessel_datasets.topic_messages import channel_values
 
     engine = Forecaster.from_checkpoint(model)
     vessel = engine.spec
@@ -53,21 +79,16 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5) -> dict:
     p = dict(predictor_defaults(), horizon=steps, max_plans=max(plans, 1))
     core = PredictorCore(engine, vessel, topic_map, p, {t: t for t in topic_map.topics},
                          sim_time=False)
-    writer = MessageWriter(topic_map, m.message_types(topic_map), 'odom', 'base_link')
-    readers = {t: channel_reader(topic_map, t) for t in topic_map.topics}
-    sim = Simulator(load_simulation(vessel=vessel.name), n_runs=1, seed=3)
     actuators = [vessel.actuator(a) for a in vessel.actuator_names]
     held = {a: 0.5 * (x.low + x.high) for a, x in zip(vessel.actuator_names, actuators,
                                                        strict=True)}
-    sample = sim.sample()
-    for _ in range(SECONDS):
-        values = {k: float(v[0]) for k, v in sample.items()}
+    leaves = {t: [leaf.channel for leaf in topic_map.leaves() if leaf.topic == t]
+              for t in topic_map.topics}
+    for values in fed_samples(vessel, held, dataset):
         channels = channel_values(values, topic_map)
-        for topic in writer.topics:
-            msg = writer.message(topic, channels, m.stamp_from_seconds(values['t']))
-            core.push(topic, values['t'], readers[topic](msg), values['t'], 'odom',
-                      time.monotonic())
-        sample = sim.advance(held)
+        for topic, names in leaves.items():
+            core.push(topic, values['t'], {name: channels[name] for name in names},
+                      values['t'], 'odom', time.monotonic())
     now = values['t']
     rng = np.random.default_rng(0)
     spread = {a: 0.1 * (x.high - x.low) for a, x in zip(vessel.actuator_names, actuators,

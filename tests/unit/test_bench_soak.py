@@ -41,3 +41,14 @@ def test_busy_stages_of_every_process_are_judged_together():
 def test_a_count_below_one_is_refused_in_one_line(text):
     with pytest.raises(argparse.ArgumentTypeError, match='integer >= 1'):
         positive_int(text)
+
+
+@pytest.mark.parametrize(('steps', 'period', 'rows'), [(900, 10.0, 90), (100, 0.0, 100)])
+def test_every_plan_covers_the_steps_asked(steps, period, rows):
+    from offline.benchmarks.soak import RequestShape, make_request
+
+    request = make_request(RequestShape(plans=3, plan_period=period, answer_period=0.0,
+                                        steps=steps))
+    assert len(request.plans) == 3
+    for plan in request.plans:
+        assert len(plan.values) == rows * len(plan.control_names)

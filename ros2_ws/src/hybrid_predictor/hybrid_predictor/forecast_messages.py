@@ -9,12 +9,14 @@ path topic. No node is needed: the messages are plain interface classes.
 from __future__ import annotations
 
 from array import array
+import copy
 from dataclasses import dataclass
 import math
 
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
+from std_msgs.msg import Header
 
 from hybrid_predictor_interfaces.msg import ControlPlan, Forecast
 from vessel_ros_bridge import messages
@@ -63,42 +65,55 @@ def doubles(values) -> array:
     return out
 
 
+class _Rows:
+    """A batch array's rows (one per forecast) as float64 bytes, each read at one copy."""
+
+    def __init__(self, values):
+        batch = np.ascontiguousarray(values, dtype=np.float64)
+        self._bytes = memoryview(batch).cast('B')
+        self._size = batch[0].nbytes if len(batch) else 0
+
+    def __getitem__(self, i: int) -> array:
+        out = array('d')
+        out.frombytes(self._bytes[i * self._size:(i + 1) * self._size])
+        return out
+
+
 def forecast_messages(served: Served, t_end: float, forecasts: Published,
                       assumed: list[Assumed], stride: int = 1) -> list[Forecast]:
-    """Return one Forecast per forecast of the batch, from the window ending at ``t_end`` (s)."""
+    """
+    Return one Forecast per forecast of the batch, from the window ending at ``t_end`` (s).
+
+    What every message of the batch says alike (header, names, units, bound, band levels
+    and radii) is made once and shared by the messages: replace a message's field (as
+    ``no_steps`` does), never change one in place.
+    """
     spec = served.spec
+    header = Header(stamp=messages.stamp_from_seconds(t_end), frame_id=served.world_frame)
+    alike = dict(
+        header=header, child_frame_id=served.body_frame, step_period=float(spec.dt * stride),
+        horizon=len(forecasts.steps), state_names=list(spec.state_names),
+        state_units=list(spec.state_units), vessel=spec.name,
+        control_names=list(spec.control_names), control_units=list(spec.control_units),
+        residual_bound=doubles(served.residual_bound), band_note=served.band_note,
+        model_id=served.model_id, relative_threshold=served.relative_threshold,
+        bounded=served.bounded)
+    if forecasts.band_lower is not None:
+        alike.update(band_levels=list(served.band_levels),
+                     band_position_radius=doubles(forecasts.band_radius))
+    rows = {name: _Rows(getattr(forecasts, name))
+            for name in ('hybrid', 'physics', 'x', 'y', 'heading', 'z', 'band_lower',
+                         'band_upper') if getattr(forecasts, name) is not None}
+    # A shallow copy of one filled message is a third of a message built field by field.
+    template = Forecast(**alike)
     out = []
     for i in range(len(forecasts.hybrid)):
-        msg = Forecast()
-        msg.header.stamp = messages.stamp_from_seconds(t_end)
-        msg.header.frame_id = served.world_frame
-        msg.child_frame_id = served.body_frame
-        msg.step_period = float(spec.dt * stride)
-        msg.horizon = len(forecasts.steps)
-        msg.state_names = list(spec.state_names)
-        msg.state_units = list(spec.state_units)
-        msg.vessel = spec.name
-        msg.control_names = list(spec.control_names)
-        msg.control_units = list(spec.control_units)
-        msg.hybrid, msg.physics = doubles(forecasts.hybrid[i]), doubles(forecasts.physics[i])
-        msg.residual_bound = doubles(served.residual_bound)
-        msg.x, msg.y = doubles(forecasts.x[i]), doubles(forecasts.y[i])
-        msg.heading = doubles(forecasts.heading[i])
-        if forecasts.z is not None:
-            msg.z = doubles(forecasts.z[i])
-        msg.band_note = served.band_note
-        if forecasts.band_lower is not None:
-            msg.band_levels = list(served.band_levels)
-            msg.band_lower = doubles(forecasts.band_lower[i])
-            msg.band_upper = doubles(forecasts.band_upper[i])
-            msg.band_position_radius = doubles(forecasts.band_radius)
-        msg.model_id = served.model_id
-        msg.controls_assumed = assumed[i].controls
-        msg.plan_id = assumed[i].plan_id
+        msg = copy.copy(template)
+        for name, row in rows.items():
+            setattr(msg, name, row[i])
+        msg.controls_assumed, msg.plan_id = assumed[i].controls, assumed[i].plan_id
         if assumed[i].plan_stamp is not None:
             msg.plan_stamp = assumed[i].plan_stamp
-        msg.relative_threshold = served.relative_threshold
-        msg.bounded = served.bounded
         out.append(msg)
     return out
 

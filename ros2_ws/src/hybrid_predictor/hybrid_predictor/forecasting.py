@@ -19,7 +19,7 @@ from hybrid_models.engine import Forecaster
 from vessel_physics import frames
 
 from .held_wind import forecast_holding_wind, holds_wind, holds_wind_each
-from .plans import answer_steps, hold_latest, plan_controls, plan_rows, track
+from .plans import answer_slice, answer_steps, hold_latest, plan_controls, plan_rows, track
 
 
 @dataclass(frozen=True)
@@ -92,11 +92,12 @@ def published(spec, pose, hybrid: np.ndarray, physics: np.ndarray, bands=None,
     answer_period; ``plans.answer_steps``); ``bands`` is the model's (``engine.bands``).
     """
     path = track(hybrid, pose, spec)   # one pass, all plans
-    keep = answer_steps(hybrid.shape[1], stride)
+    keep = answer_slice(stride)
     x, y, _ = frames.position_ned_to_enu(path.north[..., keep], path.east[..., keep])
     z = None if path.down is None else -path.down[..., keep]
     names = spec.state_names
-    out = dict(steps=keep, hybrid=frames.states_frd_to_flu(hybrid[:, keep], names),
+    out = dict(steps=answer_steps(hybrid.shape[1], stride),
+               hybrid=frames.states_frd_to_flu(hybrid[:, keep], names),
                physics=frames.states_frd_to_flu(physics[:, keep], names), x=x, y=y,
                heading=frames.heading_ned_to_enu(path.heading[..., keep]), z=z)
     if bands is not None:

@@ -138,7 +138,12 @@ def answer_stride(answer_period: float, dt: float, horizon: int) -> int:
 
 def answer_steps(horizon: int, stride: int) -> np.ndarray:
     """Return the indices of the forecast steps an answer of ``stride`` carries (the last too)."""
-    return np.arange(stride - 1, horizon, stride)
+    return np.arange(horizon)[answer_slice(stride)]
+
+
+def answer_slice(stride: int) -> slice:
+    """Return ``answer_steps`` as a slice of the step axis (a view, where indices copy)."""
+    return slice(stride - 1, None, stride)
 
 
 def check_plan(names: Sequence[str], units: Sequence[str], values, horizon: int,

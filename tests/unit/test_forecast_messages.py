@@ -1,0 +1,68 @@
+"""hybrid_predictor.forecast_messages: a batch of Forecast messages from published arrays."""
+
+from array import array
+
+import numpy as np
+from rclpy.serialization import deserialize_message, serialize_message
+
+from hybrid_predictor.forecast_messages import Assumed, Served, forecast_messages, no_steps
+from hybrid_predictor.forecasting import Published
+from hybrid_predictor_interfaces.msg import Forecast
+from vessel_description import load_vessel
+from vessel_ros_bridge import messages
+
+B, K, LEVELS = 3, 7, (0.5, 0.9)
+
+
+def _batch(rng, vessel):
+    n = vessel.n_state
+    hybrid = rng.normal(size=(B, K, n))
+    return Published(steps=np.arange(K), hybrid=hybrid, physics=rng.normal(size=(B, K, n)),
+                     x=rng.normal(size=(B, K)), y=rng.normal(size=(B, K)),
+                     heading=rng.normal(size=(B, K)), z=None,
+                     band_lower=hybrid[:, None] - 1.0 - rng.random((B, len(LEVELS), K, n)),
+                     band_upper=hybrid[:, None] + 1.0 + rng.random((B, len(LEVELS), K, n)),
+                     band_radius=rng.random((len(LEVELS), K)))
+
+
+def _field_by_field(served, t_end, arrays, i, assumed):
+    """One message as a reader of the message's definition would fill it."""
+    spec = served.spec
+    msg = Forecast()
+    msg.header.stamp = messages.stamp_from_seconds(t_end)
+    msg.header.frame_id = served.world_frame
+    msg.child_frame_id = served.body_frame
+    msg.step_period, msg.horizon = spec.dt, K
+    msg.state_names, msg.state_units = list(spec.state_names), list(spec.state_units)
+    msg.vessel = spec.name
+    msg.control_names, msg.control_units = list(spec.control_names), list(spec.control_units)
+    for name in ('hybrid', 'physics', 'x', 'y', 'heading', 'band_lower', 'band_upper'):
+        setattr(msg, name, array('d', getattr(arrays, name)[i].ravel().tolist()))
+    msg.band_position_radius = array('d', arrays.band_radius.ravel().tolist())
+    msg.band_levels, msg.band_note = list(LEVELS), served.band_note
+    msg.residual_bound = array('d', served.residual_bound.tolist())
+    msg.model_id, msg.relative_threshold, msg.bounded = served.model_id, 0.2, True
+    msg.controls_assumed, msg.plan_id = assumed.controls, assumed.plan_id
+    if assumed.plan_stamp is not None:
+        msg.plan_stamp = assumed.plan_stamp
+    return msg
+
+
+def test_each_message_carries_its_own_forecast_and_the_batch_alike():
+    vessel = load_vessel('patrol_boat')
+    rng = np.random.default_rng(0)
+    arrays = _batch(rng, vessel)
+    served = Served(vessel, 'odom', 'base_link', 'model@1', rng.random(vessel.n_state), 0.2,
+                    True, LEVELS, 'calibrated on 3 runs')
+    assumed = [Assumed(Forecast.CONTROLS_PLAN, f'plan-{i}', messages.stamp_from_seconds(i))
+               for i in range(B - 1)] + [Assumed()]
+    out = forecast_messages(served, 123.25, arrays, assumed)
+    assert len(out) == B
+    for i, msg in enumerate(out):
+        assert msg == _field_by_field(served, 123.25, arrays, i, assumed[i]), i
+        assert deserialize_message(serialize_message(msg), Forecast) == msg
+    # A field replaced in one message (a withheld forecast) is replaced in that one alone.
+    no_steps(out[0])
+    assert out[0].horizon == 0 and len(out[0].hybrid) == 0
+    assert out[1].horizon == K and list(out[1].hybrid) == arrays.hybrid[1].ravel().tolist()
+    assert out[2].plan_id == '' and out[1].plan_id == 'plan-1'
