@@ -24,7 +24,7 @@ from torch import nn
 
 from hybrid_models.bound import ServedThreshold
 from hybrid_models.hybrid_step import ENSEMBLE_KIND, ensemble_step
-from hybrid_models.nets import HybridModel
+from hybrid_models.nets import HybridModel, roll_out
 from hybrid_models.physical.identity import physics_identity
 
 KIND = ENSEMBLE_KIND
@@ -93,20 +93,10 @@ class EnsembleHybrid(nn.Module, ServedThreshold):
         weights = tuple(m.step_weights() for m in self.members)
         if bounds is None:
             bounds = self.step_bounds(c_future.shape[1])
-        mode = self.members[0]._bound_mode()
-        z = z_window[:, -1]
-        zs, phys, ress = [], [], []
-        for k in range(c_future.shape[1]):
-            z, z_phy, res, recurrents = ensemble_step(
-                self.members[0].cell, weights, self.physical, z, c_future[:, k], recurrents, mode,
-                None if bounds is None else bounds[k])
-            zs.append(z)
-            phys.append(z_phy)
-            ress.append(res)
-        out = torch.stack(zs, dim=1)
-        if return_parts:
-            return out, torch.stack(phys, dim=1), torch.stack(ress, dim=1)
-        return out
+        cell, mode = self.members[0].cell, self.members[0]._bound_mode()
+        return roll_out(lambda z, c, recurrents, bound: ensemble_step(
+            cell, weights, self.physical, z, c, recurrents, mode, bound),
+            z_window[:, -1], c_future, recurrents, bounds, return_parts)
 
     def describe(self) -> dict:
         """Architecture (``build_model`` input): the member's description and the count."""

@@ -165,6 +165,29 @@ class LSTMBaseline(_Normalized):
                 'layers': self.layers, 'dropout': self.dropout}
 
 
+def roll_out(step, z: torch.Tensor, c_future: torch.Tensor, recurrent,
+             bounds: torch.Tensor | None, return_parts: bool = False):
+    """
+    Feed ``step`` its own output over the horizon: the hybrids' multistep forecast.
+
+    ``step(z, c, recurrent, bound)`` returns (z_next, z_phy, residual, recurrent), as
+    ``hybrid_step`` does; z (B, n_state) is the last measured state, c_future
+    (B, H, n_control), bounds (H, ...) one row a step or None for the served ones. Returns
+    the states (B, H, n_state) and, with ``return_parts``, z_phy and the residuals too.
+    """
+    zs, phys, ress = [], [], []
+    for k in range(c_future.shape[1]):
+        z, z_phy, res, recurrent = step(z, c_future[:, k], recurrent,
+                                        None if bounds is None else bounds[k])
+        zs.append(z)
+        phys.append(z_phy)
+        ress.append(res)
+    out = torch.stack(zs, dim=1)
+    if return_parts:
+        return out, torch.stack(phys, dim=1), torch.stack(ress, dim=1)
+    return out
+
+
 class HybridModel(_Normalized, ServedThreshold):
     """
     Residual hybrid of Baier et al.: z_{t+1} = z_phy_{t+1} + bound(LSTM residual).
@@ -273,18 +296,8 @@ class HybridModel(_Normalized, ServedThreshold):
         weights = self.step_weights()
         if bounds is None:
             bounds = self.step_bounds(c_future.shape[1])
-        z = z_window[:, -1]
-        zs, phys, ress = [], [], []
-        for k in range(c_future.shape[1]):
-            z, z_phy, res, recurrent = self.step(z, c_future[:, k], recurrent, weights,
-                                                 None if bounds is None else bounds[k])
-            zs.append(z)
-            phys.append(z_phy)
-            ress.append(res)
-        out = torch.stack(zs, dim=1)
-        if return_parts:
-            return out, torch.stack(phys, dim=1), torch.stack(ress, dim=1)
-        return out
+        return roll_out(lambda z, c, state, bound: self.step(z, c, state, weights, bound),
+                        z_window[:, -1], c_future, recurrent, bounds, return_parts)
 
     def teacher_forced(self, z_window: torch.Tensor, c_window: torch.Tensor,
                        c_future: torch.Tensor, z_phy: torch.Tensor) -> torch.Tensor:
