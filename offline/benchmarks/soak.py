@@ -354,14 +354,15 @@ class ProcessLoads:
     Each process holds ``clients // processes`` clients, says it is ready once its
     service is there, starts when told, and writes its ``Load.raw()``: a Python one
     (``client_main``) or, with ``kind`` 'c', one of package what_if_c, which sends
-    the soak's request from its serialized bytes.
+    the soak's request (or ``request``, a Predict.Request of any vessel) from its
+    serialized bytes.
     """
 
     clients = ()   # none here: each process waits for the service itself
 
     def __init__(self, children, log_dir: Path, processes: int, clients: int,
                  concurrency: int, shape: RequestShape, busy_backoff: float | str,
-                 kind: str = 'python'):
+                 kind: str = 'python', request=None):
         import sys
 
         self.dir = log_dir / 'clients'
@@ -373,10 +374,10 @@ class ProcessLoads:
         if kind == 'c':
             from rclpy.serialization import serialize_message
 
-            request = self.dir / 'request.cdr'
-            request.write_bytes(serialize_message(make_request(shape)))
+            sent = self.dir / 'request.cdr'
+            sent.write_bytes(serialize_message(request or make_request(shape)))
             command = [sys.executable, '-m', 'what_if_c.load', '--service', SERVICE,
-                       '--request', str(request), *each]
+                       '--request', str(sent), *each]
         else:
             command = [sys.executable, str(Path(__file__).resolve()), 'client', *each,
                        '--plans', str(shape.plans), '--plan-period', str(shape.plan_period),
@@ -388,6 +389,12 @@ class ProcessLoads:
 
     def begin(self, seconds: float, ready_within: float = 120.0) -> None:
         """Wait until every process is ready, then start them all for ``seconds``."""
+        self.wait_ready(ready_within)
+        (self.dir / 'start.tmp').write_text(f'{seconds}')
+        (self.dir / 'start.tmp').rename(self.dir / 'start')
+
+    def wait_ready(self, ready_within: float = 120.0) -> None:
+        """Wait until every process has found the service (at once when they have)."""
         deadline = time.monotonic() + ready_within
         while len(list(self.dir.glob('*.ready'))) < len(self.processes):
             if any(p.poll() is not None for p in self.processes):
@@ -395,8 +402,6 @@ class ProcessLoads:
             if time.monotonic() > deadline:
                 raise RuntimeError(f'soak clients not ready within {ready_within:.0f} s')
             time.sleep(0.1)
-        (self.dir / 'start.tmp').write_text(f'{seconds}')
-        (self.dir / 'start.tmp').rename(self.dir / 'start')
 
     def settle(self, seconds: float) -> None:
         """Wait for every process to finish (each waits ``seconds`` for its answers)."""

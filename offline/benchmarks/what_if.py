@@ -61,13 +61,29 @@ def fed_samples(vessel, held: dict, dataset=None) -> list[dict]:
     return max(runs, key=len).iloc[:SECONDS].to_dict('records')
 
 
+def candidate_plans(vessel, plans: int, steps: int, seed: int = 0) -> list:
+    """
+    Return a planner's ``plans`` ControlPlans of ``steps`` steps about the mid-range.
+
+    Each actuator is drawn at random each step within a tenth of its range of the middle
+    of its range (see module doc).
+    """
+    from hybrid_predictor.plan_message import control_plan
+
+    rng = np.random.default_rng(seed)
+    actuators = [vessel.actuator(a) for a in vessel.actuator_names]
+    columns = [(0.5 * (x.low + x.high), 0.1 * (x.high - x.low)) for x in actuators]
+    return [control_plan(vessel, np.column_stack([
+        rng.uniform(mid - spread, mid + spread, steps) for mid, spread in columns]))
+        for _ in range(plans)]
+
+
 def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None) -> dict:
     """Return the what-if's figures for ``plans`` plans of ``steps`` steps (ms, medians)."""
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.core import PredictorCore
     from hybrid_predictor.forecast_messages import followed, forecast_messages
     from hybrid_predictor.forecasting import forecast, plan_futures
-    from hybrid_predictor.plan_message import control_plan
     from hybrid_predictor.plans import check_plan_messages
     from hybrid_predictor.re_forecast import predictor_defaults
     from vessel_datasets.topic_map import topic_map_for
@@ -90,12 +106,7 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
             core.push(topic, values['t'], {name: channels[name] for name in names},
                       values['t'], 'odom', time.monotonic())
     now = values['t']
-    rng = np.random.default_rng(0)
-    spread = {a: 0.1 * (x.high - x.low) for a, x in zip(vessel.actuator_names, actuators,
-                                                          strict=True)}
-    requests = [control_plan(vessel, np.column_stack([
-        rng.uniform(held[a] - spread[a], held[a] + spread[a], steps)
-        for a in vessel.actuator_names])) for _ in range(plans)]
+    requests = candidate_plans(vessel, plans, steps)
     engine.warm_up(steps, window=engine.window, max_batch=plans)
     with core.lock:
         result = core.assemble(now)

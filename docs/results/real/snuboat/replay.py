@@ -11,7 +11,11 @@ compiled engine and bound) and the two are compared. While the bag still plays, 
 the predictor's what-if service for forecasts of candidate plans in the boat's own
 controls (n_port, n_stbd, delta_port, delta_stbd), and sends a plan with a wrong unit,
 one with a wrong control name and one with a missing control, which must be refused.
-Prints one JSON document.
+With ``--load-plans N``, a planner's request as well (``offline/benchmarks/what_if.py``:
+N plans of ``--load-steps`` steps about the middle of each control's range, every step
+answered) is sent again and again for ``--load-seconds`` by a what-if client in C
+(package what_if_c, as the service soak's), one request in flight, each timed from its
+sending to its whole answer received (``what_if_load``). Prints one JSON document.
 
 usage (repo root, after `make setup` and docs/results/real/snuboat/run.sh):
   tools/with_env.sh python docs/results/real/snuboat/replay.py \\
@@ -57,7 +61,7 @@ ament_export_dependencies(rosidl_default_runtime)
 ament_package()
 """
 TOPICS = ('/sensor', '/ctrl_fb_boat')
-THRESHOLD = 0.15   # the relative threshold the replayed predictor serves (-p below)
+THRESHOLD = 0.15   # the relative threshold the replayed predictor serves by default
 # How much later (s) than this script's send time the node may stamp a sample on arrival.
 ARRIVAL_SLACK = 0.05
 
@@ -121,6 +125,23 @@ def what_if_requests(vessel, horizon: int, shafts: dict, control_plan) -> list:
             ('a control left out', Predict.Request(plans=[missing]))]
 
 
+def served_threshold(text: str) -> float | None:
+    """Return --threshold: a number, or None for the checkpoint's own ("own")."""
+    return None if text == 'own' else float(text)
+
+
+def load_figures(merged, shape) -> dict:
+    """Return what the planner's requests (``--load-plans``) measured, in ms and kB."""
+    latencies = np.asarray(merged.success_latencies) * 1e3
+    return {'plans': shape.plans, 'steps': shape.steps, 'sent': merged.sent,
+            'success': merged.success, 'busy': merged.busy, 'failures': merged.failures,
+            'request_kb': merged.request_kb, 'answer_kb': merged.success_answer_kb,
+            'p50_ms': round(float(np.percentile(latencies, 50)), 1) if merged.success
+            else None,
+            'p99_ms': round(float(np.percentile(latencies, 99)), 1) if merged.success
+            else None}
+
+
 def main() -> int:
     """Replay, collect, recompute, compare; print JSON."""
     parser = argparse.ArgumentParser(description=__doc__,
@@ -130,6 +151,17 @@ def main() -> int:
     parser.add_argument('--msg-dir', type=Path, default=REPO.parent / 'shared' / 'real' /
                         'snuboat' / 'msg', help="the boat's .msg folder")
     parser.add_argument('--seconds', type=float, default=40.0, help='how much to replay')
+    parser.add_argument('--threshold', type=served_threshold, default=THRESHOLD,
+                        help='the relative threshold served (default 0.15); "own": the '
+                             "checkpoint's own, with its bands (a threshold of another "
+                             'serves none)')
+    parser.add_argument('--load-plans', type=int, default=0,
+                        help="plans in a planner's request timed end to end (0: none)")
+    parser.add_argument('--load-steps', type=int, default=100,
+                        help="steps of each of its plans: the predictor's horizon (100)")
+    parser.add_argument('--load-seconds', type=float, default=15.0,
+                        help='how long such requests are sent, from the first forecast '
+                             '(15)')
     args = parser.parse_args()
     if 'SNUBOAT_REPLAY_WORK' not in os.environ:
         # The built package's libraries must be on the loader path before the process
@@ -162,11 +194,24 @@ def main() -> int:
     from vessel_ros_bridge.messages import seconds_from_stamp
 
     messages = bag_messages(args.bag, args.msg_dir)
+    vessel = load_vessel('snuboat')
+    load_params = {'horizon': args.load_steps, 'max_plans': args.load_plans} \
+        if args.load_plans else {}
     # The predictor is stopped however this block ends (an error, Ctrl-C, SIGTERM).
     with Children(work) as children:
         predictor = children.node('hybrid_predictor', 'predictor', params={
             'model_path': str(args.model), 'vessel': 'snuboat',
-            'relative_threshold': THRESHOLD}, env=env)
+            **({} if args.threshold is None else {'relative_threshold': args.threshold}),
+            **load_params}, env=env)
+        load = None
+        if args.load_plans:
+            sys.path.insert(0, str(REPO / 'offline'))
+            from benchmarks.soak import ProcessLoads, RequestShape
+            from benchmarks.what_if import candidate_plans
+
+            shape = RequestShape(args.load_plans, 0.0, 0.0, args.load_steps)
+            load = ProcessLoads(children, work, 1, 1, 1, shape, 0.2, 'c', Predict.Request(
+                plans=candidate_plans(vessel, args.load_plans, args.load_steps)))
         rclpy.init(**rclpy_options())
         node = rclpy.create_node('snuboat_replay')
         forecasts = []
@@ -183,7 +228,8 @@ def main() -> int:
                          + (work / 'predictor.log').read_text()[-1000:])
             executor.spin_once(timeout_sec=0.2)
 
-        vessel = load_vessel('snuboat')
+        if load is not None:
+            load.wait_ready()
         topic_map = topic_map_for(vessel)
         readers = {t: channel_reader(topic_map, t) for t in TOPICS}
         sent = []  # (wall time s, topic, channel values) as the predictor timed them
@@ -204,6 +250,8 @@ def main() -> int:
             if (log_ns - t0_bag) * 1e-9 > args.seconds:
                 break
             if asks is None and forecasts:
+                if load is not None:
+                    load.begin(args.load_seconds)
                 # The predictor forecasts, so its window is full: ask while the bag plays.
                 latest = {k: v for _, t, values in sent if t == '/ctrl_fb_boat'
                           for k, v in values.items()}
@@ -228,6 +276,8 @@ def main() -> int:
         while time.monotonic() < end or ((asks or pending) and time.monotonic() < end + 30):
             executor.spin_once(timeout_sec=0.05)
             serve_asks()
+        if load is not None:
+            load.settle(args.load_seconds)
     what_if = {name: {'success': a.success, 'message': a.message,
                       'forecasts': len(a.forecasts),
                       'control_names': list(a.forecasts[0].control_names)
@@ -238,7 +288,7 @@ def main() -> int:
     # Recomputed by the predictor's own re-forecast (hybrid_predictor.re_forecast) from the
     # samples as they were sent: these types carry no header, so the node stamped each on
     # arrival, a few milliseconds after the time kept here (ARRIVAL_SLACK).
-    kept = ReForecast(Forecaster.from_checkpoint(args.model, THRESHOLD), topic_map,
+    kept = ReForecast(Forecaster.from_checkpoint(args.model, args.threshold), topic_map,
                       predictor_defaults())
     for t, topic, values in sent:
         kept.add_sample(topic, t, values)
@@ -264,6 +314,7 @@ def main() -> int:
         dict(zip(vessel.state_names, np.median(diffs, axis=0).round(6).tolist(),
                  strict=True)),
         'what_if': what_if,
+        'what_if_load': None if load is None else load_figures(load.figures(), shape),
     }, indent=2))
     node.destroy_node()
     rclpy.shutdown()
