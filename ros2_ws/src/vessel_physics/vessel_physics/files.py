@@ -53,6 +53,22 @@ def read_document(path: str | os.PathLike, what: str) -> Any:
     return read_yaml(path, ConfigError, what)
 
 
+def parameter_mapping(data: Any, fmt: str, source: str, what: str = 'parameters') -> dict:
+    """
+    Return a parameter file's mapping without what it says of itself, its format checked.
+
+    ``data`` is the parsed YAML; ``format`` (``fmt`` where absent), ``description`` and
+    ``sources`` are left out. ConfigError (one line) when it is no mapping or of another
+    format.
+    """
+    if not isinstance(data, Mapping):
+        raise ConfigError(f'{source}: expected a mapping of {what}, got {type(data).__name__}')
+    found = data.get('format', fmt)
+    if found != fmt:
+        raise ConfigError(f'{source}: format: expected {fmt!r}, got {found!r}')
+    return {k: v for k, v in data.items() if k not in ('format', 'description', 'sources')}
+
+
 def numeric_fields(data: Any, known: Iterable[str], numbers: Iterable[str], source: str,
                    what: str) -> dict[str, float]:
     """

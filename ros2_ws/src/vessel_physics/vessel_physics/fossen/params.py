@@ -17,14 +17,12 @@ A parameter file (``format: fossen-params/1``) holds exactly these keys, SI unit
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 
 from vessel_physics.errors import ConfigError
-from vessel_physics.files import check_ranges, numeric_fields
+from vessel_physics.files import check_ranges, numeric_fields, parameter_mapping
 
 FORMAT = 'fossen-params/1'
-_INFORMATION_KEYS = ('format', 'description', 'sources')
 
 
 @dataclass(frozen=True)
@@ -123,12 +121,7 @@ def _devices(cls, items, key: str, source: str) -> tuple:
 
 def params_from_dict(data, source: str = 'fossen parameters') -> FossenParams:
     """Build validated parameters from a parameter file's mapping (module docstring)."""
-    if not isinstance(data, Mapping):
-        raise ConfigError(f'{source}: expected a mapping of parameters')
-    fmt = data.get('format', FORMAT)
-    if fmt != FORMAT:
-        raise ConfigError(f'{source}: format: expected {FORMAT!r}, got {fmt!r}')
-    data = {k: v for k, v in data.items() if k not in _INFORMATION_KEYS}
+    data = parameter_mapping(data, FORMAT, source)
     scalars = {k: v for k, v in data.items() if k not in ('thrusters', 'rudders')}
     values = numeric_fields(scalars, FLOAT_FIELDS + ('name',), FLOAT_FIELDS, source,
                             'parameters')

@@ -12,7 +12,7 @@ import dataclasses
 from dataclasses import dataclass, fields
 
 from vessel_physics.errors import ConfigError
-from vessel_physics.files import check_ranges, numeric_fields
+from vessel_physics.files import check_ranges, numeric_fields, parameter_mapping
 
 FORMAT = 'mmg-params/1'
 WAKE_MODELS = ('yasukawa2015', 'exponential')
@@ -127,7 +127,6 @@ _FLOAT_FIELDS = tuple(f.name for f in fields(MmgParams) if f.name not in ('name'
 _POSITIVE = ('rho', 'L_pp', 'B', 'd', 'displacement', 'k_zz', 'D_p', 'A_R', 'H_R',
              'f_alpha', 'epsilon')
 _FRACTIONS = ('t_P', 'w_P0', 't_R')   # in [0, 1)
-_INFORMATION_KEYS = ('description', 'sources')
 LENGTH_TOL = 0.01   # a file within 1 % of the vessel's length is made for it
 
 
@@ -142,11 +141,7 @@ def validated(params: MmgParams, source: str = 'mmg') -> MmgParams:
 
 def params_from_dict(data, source: str = 'mmg') -> MmgParams:
     """Build validated parameters from a mapping with the dataclass's keys (+ format)."""
-    if isinstance(data, dict):
-        data = {k: v for k, v in data.items() if k not in _INFORMATION_KEYS}
-        fmt = data.pop('format', FORMAT)
-        if fmt != FORMAT:
-            raise ConfigError(f'{source}: format: expected {FORMAT!r}, got {fmt!r}')
+    data = parameter_mapping(data, FORMAT, source, 'MMG parameters')
     values = numeric_fields(data, (f.name for f in fields(MmgParams)), _FLOAT_FIELDS, source,
                             'MMG parameters')
     return validated(MmgParams(name=str(data['name']), wake_model=str(data['wake_model']),

@@ -24,16 +24,14 @@ A parameter file (``format: multirotor-params/1``) holds exactly these keys.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
 from vessel_physics.errors import ConfigError, did_you_mean
-from vessel_physics.files import check_ranges, numeric_fields
+from vessel_physics.files import check_ranges, numeric_fields, parameter_mapping
 
 FORMAT = 'multirotor-params/1'
-_INFORMATION_KEYS = ('format', 'description', 'sources')
 # Reaction yaw moment of a rotor's drag torque about +z FRD, per spin sense (module doc).
 SPIN_SIGN = {'ccw': 1.0, 'cw': -1.0}
 # The rotor-thrust candidates and the probe controls cover this many rotors (an octocopter).
@@ -119,12 +117,7 @@ def _rotors(items, source: str) -> tuple[Rotor, ...]:
 
 def params_from_dict(data, source: str = 'multirotor parameters') -> MultirotorParams:
     """Build validated parameters from a parameter file's mapping (module docstring)."""
-    if not isinstance(data, Mapping):
-        raise ConfigError(f'{source}: expected a mapping of parameters')
-    fmt = data.get('format', FORMAT)
-    if fmt != FORMAT:
-        raise ConfigError(f'{source}: format: expected {FORMAT!r}, got {fmt!r}')
-    data = {k: v for k, v in data.items() if k not in _INFORMATION_KEYS}
+    data = parameter_mapping(data, FORMAT, source)
     scalars = {k: v for k, v in data.items() if k != 'rotors'}
     values = numeric_fields(scalars, FLOAT_FIELDS + ('name',), FLOAT_FIELDS, source,
                             'parameters')

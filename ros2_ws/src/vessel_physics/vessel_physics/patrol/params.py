@@ -27,14 +27,13 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 
 from vessel_physics.errors import ConfigError
-from vessel_physics.files import check_ranges, numeric_fields
+from vessel_physics.files import check_ranges, numeric_fields, parameter_mapping
 
 GRAVITY = 9.81  # m/s^2, standard value used by the MSS navalvessel data
 
 # Archimedes: a floating hull weighs rho * displacement; files may round m a little.
 MASS_TOLERANCE = 0.01
 FORMAT = 'patrol-params/1'   # optional in a file: parameter files older than it have none
-_INFORMATION_KEYS = ('format', 'description')
 
 
 @dataclass(frozen=True)
@@ -145,11 +144,7 @@ def _validated(params: PatrolParams, source: str) -> PatrolParams:
 
 def params_from_dict(data, source: str = 'patrol parameters') -> PatrolParams:
     """Build validated parameters from a mapping with exactly the dataclass's keys."""
-    if isinstance(data, dict):
-        fmt = data.get('format', FORMAT)
-        if fmt != FORMAT:
-            raise ConfigError(f'{source}: format: expected {FORMAT!r}, got {fmt!r}')
-        data = {k: v for k, v in data.items() if k not in _INFORMATION_KEYS}
+    data = parameter_mapping(data, FORMAT, source)
     values = numeric_fields(data, (f.name for f in fields(PatrolParams)), FLOAT_FIELDS,
                             source, 'parameters')
     return _validated(PatrolParams(name=str(data['name']), **values), source)
