@@ -9,6 +9,7 @@ absent; the comparison itself is tested on figures made here.
 
 import json
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -69,6 +70,33 @@ def test_a_study_whose_seed_0_moves_or_loses_to_its_physics_is_named():
         name, {'exit': 0, 'rows': rows})
     assert claims.study_differences(name, {'exit': 1, 'rows': {}}) == [
         "snuboat_heldout: the study's tool ended with exit 1"]
+
+
+def test_a_study_is_trained_again_apart_with_the_kernels_of_its_figures(monkeypatch,
+                                                                         tmp_path):
+    """Each study runs in a process of its own with PINNED_ISA; a failure says why."""
+    seen = {}
+
+    def trained(cmd, env, **_):
+        seen.update(cmd=cmd, env=env)
+        out = Path(cmd[cmd.index('--out') + 1])
+        out.mkdir(parents=True)
+        (out / 'results.json').write_text(json.dumps({'rows': [{
+            'label': 'hybrid', 'metrics': {'trajectory': {'mean': 0.3}},
+            'physics': ['hyd physics']}]}))
+        return SimpleNamespace(returncode=0, stderr='')
+
+    monkeypatch.setattr(claims.subprocess, 'run', trained)
+    got = claims.study_figures('snuboat_heldout', tmp_path / 'ds', tmp_path)
+    assert Path(seen['cmd'][1]) == claims.REPO / 'offline' / 'crossval.py'
+    assert {k: seen['env'].get(k) for k in claims.PINNED_ISA} == claims.PINNED_ISA
+    assert got == {'exit': 0, 'rows': {'hybrid': {'trajectory': 0.3, 'physics': 'hyd physics',
+                                                  'harms': []}}}
+    monkeypatch.setattr(claims.subprocess, 'run', lambda cmd, env, **_: SimpleNamespace(
+        returncode=2, stderr='fold 0 ...\ncrossval: error: no dataset at ds\n'))
+    failed = claims.study_figures('snuboat_heldout', tmp_path / 'ds', tmp_path)
+    assert claims.study_differences('snuboat_heldout', failed) == [
+        "snuboat_heldout: the study's tool ended with exit 2: crossval: error: no dataset at ds"]
 
 
 def test_a_diagnosis_whose_figures_or_terms_move_is_named():
