@@ -53,8 +53,15 @@ def fed_samples(vessel, held: dict, dataset=None) -> list[dict]:
         for _ in range(SECONDS - 1):
             samples.append(sim.advance(held))
         return [{k: float(v[0]) for k, v in sample.items()} for sample in samples]
-    from vessel_datasets.format import read_dataset
-    recording = read_dataset(dataset)
+    from vessel_datasets.format import DatasetError, read_dataset
+    try:
+        recording = read_dataset(dataset)
+        recorded = recording.vessel.name
+    except DatasetError as exc:
+        raise SystemExit(f'what-if: {exc}') from None
+    if recorded != vessel.name:
+        raise SystemExit(f'what-if: {dataset} is a recording of {recorded!r}; the model '
+                         f'serves {vessel.name!r}')
     runs = [recording.load(run) for run in recording.run_ids('test')]
     if not runs:
         raise SystemExit(f'what-if: {dataset} has no test run to feed the predictor')

@@ -31,6 +31,13 @@ def test_a_recording_feeds_the_first_rows_of_its_longest_test_run(tmp_path):
     assert len(fed) == SECONDS
     assert [row['t'] for row in fed] == pytest.approx(np.arange(SECONDS) * vessel.dt)
     assert {row['u'] for row in fed} == {2.0}
+    with pytest.raises(SystemExit) as refused:
+        fed_samples(load_vessel('patrol_boat'), {}, tmp_path)
+    assert str(refused.value) == (f"what-if: {tmp_path} is a recording of 'snuboat'; the "
+                                  "model serves 'patrol_boat'")
+    with pytest.raises(SystemExit) as refused:
+        fed_samples(vessel, {}, tmp_path / 'absent')
+    assert str(refused.value).startswith('what-if: ') and '\n' not in str(refused.value)
 
 
 def test_a_vessel_the_simulator_cannot_run_needs_a_recording_and_says_so():
