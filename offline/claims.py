@@ -25,9 +25,10 @@ real-data table (``STUDIES``) on a reduced protocol, seed 0 of their seeds: each
 row's held-out trajectory error must stay within ``STUDY_TOLERANCE`` of the committed
 seed 0's, and each hybrid better than its physics alone over the trajectory and no worse
 at any reported step (``selection.harms``). The studies are trained again in processes
-of their own with torch's, MKL's and oneDNN's AVX2 kernels (``PINNED_ISA``), those the
-committed figures were derived with: on a CPU with AVX-512 the same seed takes other
-rounding paths, and a training lands elsewhere within its seeds' spread.
+of their own with torch's, MKL's and oneDNN's AVX2 kernels (``PINNED_ISA``, from
+``tools/pinned_kernels.env``), those the committed figures were derived with: on a CPU
+with AVX-512 the same seed takes other rounding paths, and a training lands elsewhere
+within its seeds' spread.
 """
 
 from __future__ import annotations
@@ -104,8 +105,16 @@ STUDY_TOLERANCE = 0.03
 # The kernels the committed studies were trained with, wherever the CPU has more: with
 # AVX-512 (a host of 2026-12-02) kvlcc2_heldout_warm's hybrid on augmented physics, seed
 # 0, gave 0.2453 m against the committed 0.2859; with these, 0.2862.
-PINNED_ISA = {'ATEN_CPU_CAPABILITY': 'avx2', 'MKL_ENABLE_INSTRUCTIONS': 'AVX2',
-              'ONEDNN_MAX_CPU_ISA': 'AVX2'}
+PINNED_KERNELS = REPO / 'tools' / 'pinned_kernels.env'
+
+
+def pinned_isa(path: Path = PINNED_KERNELS) -> dict[str, str]:
+    """Return the environment of ``tools/pinned_kernels.env`` (KEY=VALUE lines)."""
+    lines = (line.strip() for line in path.read_text().splitlines())
+    return dict(line.split('=', 1) for line in lines if line and not line.startswith('#'))
+
+
+PINNED_ISA = pinned_isa()
 # How far a figure may move (absolute), by what it measures; counts must stay equal.
 TOLERANCE = {'slope': 0.01, 'seconds': 0.02, 'degrees': 0.25, 'count': 0.0}
 

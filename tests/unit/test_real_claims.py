@@ -133,3 +133,16 @@ def test_a_figure_that_moves_beyond_its_tolerance_is_named():
     now['runs'] = 44
     assert "snuboat: 44 runs, the docs' 45" in claims.differences({'snuboat': snuboat},
                                                                    {'snuboat': now})
+
+
+def test_every_script_that_trains_committed_figures_pins_their_kernels():
+    """The results' run.sh scripts train with tools/pinned_kernels.env, as the check does."""
+    assert claims.PINNED_ISA == {'ATEN_CPU_CAPABILITY': 'avx2',
+                                 'MKL_ENABLE_INSTRUCTIONS': 'AVX2', 'ONEDNN_MAX_CPU_ISA': 'AVX2'}
+    scripts = sorted((claims.REPO / 'docs' / 'results').rglob('run.sh'))
+    training = [s for s in scripts if any(tool in s.read_text() for tool in (
+        'crossval', 'workflow.py', 'train.py', 'reproduce_table'))]
+    assert len(training) >= 5, training
+    for script in training:
+        text = script.read_text()
+        assert 'set -a; source tools/pinned_kernels.env; set +a' in text, script

@@ -10,6 +10,8 @@
 # Time on the 2-core machine: conversion seconds, peers ~2 min, simulation ~1 min, each
 # Table 3 ~1-1.5 h.
 set -euo pipefail
+# The committed figures' CPU kernels, whatever this CPU has (tools/pinned_kernels.env).
+set -a; source tools/pinned_kernels.env; set +a
 WORK="${1:-/tmp/real/nanodrone}"
 shift || true
 STEPS="${*:-convert peers paper benchmark simulate sim sim_benchmark physics}"

@@ -7,6 +7,8 @@
 # Time on the 2-core machine, shared with other work: roughly 20-40 min per dataset; a
 # second call keeps every finished training and every peer's answer to the same problem.
 set -euo pipefail
+# The committed figures' CPU kernels, whatever this CPU has (tools/pinned_kernels.env).
+set -a; source tools/pinned_kernels.env; set +a
 REAL="${1:-../shared/real}"
 WORK="${2:-/tmp/peers}"
 shift 2 || true

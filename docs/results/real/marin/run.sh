@@ -7,6 +7,8 @@
 # (MIT licence), data/01_raw/kvlcc2/, commit 4b7ce53; they are not committed here.
 # About an hour on 2 cores (90 trainings of a minute or less).
 set -euo pipefail
+# The committed figures' CPU kernels, whatever this CPU has (tools/pinned_kernels.env).
+set -a; source tools/pinned_kernels.env; set +a
 MARIN="$1"
 WORK="${2:-/tmp/real}"
 OUT=docs/results/real/marin

@@ -7,6 +7,8 @@
 # About two hours on 2 cores (20 + 18 + 75 trainings of a minute or two; a second call keeps
 # every finished training).
 set -euo pipefail
+# The committed figures' CPU kernels, whatever this CPU has (tools/pinned_kernels.env).
+set -a; source tools/pinned_kernels.env; set +a
 REAL="${1:-../shared/real}"
 WORK="${2:-/tmp/real}"
 OUT=docs/results/real/snuboat
