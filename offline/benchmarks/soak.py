@@ -146,6 +146,12 @@ class RequestShape:
     steps: int = HORIZON
 
 
+def percentile_ms(seconds, q: float) -> float | None:
+    """Return the ``q``-th percentile of latencies in s, in ms to 0.1 (None without any)."""
+    latencies = np.asarray(seconds, dtype=float) * 1e3
+    return round(float(np.percentile(latencies, q)), 1) if len(latencies) else None
+
+
 MEMORY_PARTS = ('VmRSS', 'RssAnon', 'RssShmem')
 
 
@@ -630,9 +636,6 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
     during_reports = [(level, message) for w, level, message in reports
                       if started <= w <= ended]
     counted = load.figures()
-    latencies = np.asarray(counted.latencies) * 1e3
-    successes = np.asarray(counted.success_latencies) * 1e3
-    busy = np.asarray(counted.busy_latencies) * 1e3
     return {
         'duration_s': round(ended - started, 1),
         'busy_stages_ms': stage_figures(counted.busy_stages),
@@ -652,18 +655,12 @@ def _soak(children, log_dir: Path, duration: float, clients: int, concurrency: i
         'failures': counted.failures,
         'requests_unanswered': counted.sent - counted.answered,
         'answered_percent': round(100.0 * counted.answered / max(counted.sent, 1), 3),
-        'latency_p50_ms': round(float(np.percentile(latencies, 50)), 1) if len(
-            latencies) else None,
-        'latency_p99_ms': round(float(np.percentile(latencies, 99)), 1) if len(
-            latencies) else None,
-        'success_latency_p50_ms': round(float(np.percentile(successes, 50)), 1) if len(
-            successes) else None,
-        'success_latency_p99_ms': round(float(np.percentile(successes, 99)), 1) if len(
-            successes) else None,
-        'busy_latency_p50_ms': round(float(np.percentile(busy, 50)), 1) if len(
-            busy) else None,
-        'busy_latency_p99_ms': round(float(np.percentile(busy, 99)), 1) if len(
-            busy) else None,
+        'latency_p50_ms': percentile_ms(counted.latencies, 50),
+        'latency_p99_ms': percentile_ms(counted.latencies, 99),
+        'success_latency_p50_ms': percentile_ms(counted.success_latencies, 50),
+        'success_latency_p99_ms': percentile_ms(counted.success_latencies, 99),
+        'busy_latency_p50_ms': percentile_ms(counted.busy_latencies, 50),
+        'busy_latency_p99_ms': percentile_ms(counted.busy_latencies, 99),
         'forecasts_published': len(during),
         'longest_silence_periods': round(float(stamp_gaps.max()) / forecast_period, 2),
         'longest_silence_wall_s': round(float(wall_gaps.max()), 3),

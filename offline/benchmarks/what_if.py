@@ -34,7 +34,13 @@ def _median_ms(fn, repeats: int) -> float:
     return round(1e3 * float(np.median(times)), 1)
 
 
-def fed_samples(vessel, held: dict, dataset=None) -> list[dict]:
+def mid_range(vessel) -> dict[str, float]:
+    """Return each actuator's middle of its range, in its unit."""
+    return {name: 0.5 * (vessel.actuator(name).low + vessel.actuator(name).high)
+            for name in vessel.actuator_names}
+
+
+def fed_samples(vessel, dataset=None) -> list[dict]:
     """
     Return the SECONDS samples fed to the core: simulated, or a recording's (see module doc).
 
@@ -49,6 +55,7 @@ def fed_samples(vessel, held: dict, dataset=None) -> list[dict]:
         except ConfigError as exc:
             raise SystemExit(f'what-if: {exc}; give a recording of it (--what-if-dataset)'
                              ) from None
+        held = mid_range(vessel)
         samples = [sim.sample()]
         for _ in range(SECONDS - 1):
             samples.append(sim.advance(held))
@@ -78,8 +85,9 @@ def candidate_plans(vessel, plans: int, steps: int, seed: int = 0) -> list:
     from hybrid_predictor.plan_message import control_plan
 
     rng = np.random.default_rng(seed)
-    actuators = [vessel.actuator(a) for a in vessel.actuator_names]
-    columns = [(0.5 * (x.low + x.high), 0.1 * (x.high - x.low)) for x in actuators]
+    middles = mid_range(vessel)
+    columns = [(middles[a], 0.1 * (vessel.actuator(a).high - vessel.actuator(a).low))
+               for a in vessel.actuator_names]
     return [control_plan(vessel, np.column_stack([
         rng.uniform(mid - spread, mid + spread, steps) for mid, spread in columns]))
         for _ in range(plans)]
@@ -102,12 +110,9 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
     p = dict(predictor_defaults(), horizon=steps, max_plans=max(plans, 1))
     core = PredictorCore(engine, vessel, topic_map, p, {t: t for t in topic_map.topics},
                          sim_time=False)
-    actuators = [vessel.actuator(a) for a in vessel.actuator_names]
-    held = {a: 0.5 * (x.low + x.high) for a, x in zip(vessel.actuator_names, actuators,
-                                                       strict=True)}
     leaves = {t: [leaf.channel for leaf in topic_map.leaves() if leaf.topic == t]
               for t in topic_map.topics}
-    for values in fed_samples(vessel, held, dataset):
+    for values in fed_samples(vessel, dataset):
         channels = channel_values(values, topic_map)
         for topic, names in leaves.items():
             core.push(topic, values['t'], {name: channels[name] for name in names},

@@ -52,3 +52,11 @@ def test_every_plan_covers_the_steps_asked(steps, period, rows):
     assert len(request.plans) == 3
     for plan in request.plans:
         assert len(plan.values) == rows * len(plan.control_names)
+
+
+def test_latency_percentiles_are_in_ms_and_absent_without_requests():
+    from offline.benchmarks.soak import percentile_ms
+
+    assert percentile_ms([0.010, 0.020, 0.030], 50) == 20.0
+    assert percentile_ms([0.0101] * 99 + [0.5], 99) == 15.0   # interpolated, as numpy does
+    assert percentile_ms([], 99) is None

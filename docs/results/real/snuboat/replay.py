@@ -132,14 +132,13 @@ def served_threshold(text: str) -> float | None:
 
 def load_figures(merged, shape) -> dict:
     """Return what the planner's requests (``--load-plans``) measured, in ms and kB."""
-    latencies = np.asarray(merged.success_latencies) * 1e3
+    from benchmarks.soak import percentile_ms  # offline/ is on the path with --load-plans
+
     return {'plans': shape.plans, 'steps': shape.steps, 'sent': merged.sent,
             'success': merged.success, 'busy': merged.busy, 'failures': merged.failures,
             'request_kb': merged.request_kb, 'answer_kb': merged.success_answer_kb,
-            'p50_ms': round(float(np.percentile(latencies, 50)), 1) if merged.success
-            else None,
-            'p99_ms': round(float(np.percentile(latencies, 99)), 1) if merged.success
-            else None}
+            'p50_ms': percentile_ms(merged.success_latencies, 50),
+            'p99_ms': percentile_ms(merged.success_latencies, 99)}
 
 
 def main() -> int:
