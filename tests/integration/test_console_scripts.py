@@ -21,6 +21,7 @@ PROGRAMS = {
     'compare_physics': 'hybrid_models',
     'set_threshold': 'hybrid_models',
     'set_bands': 'hybrid_models',
+    'set_novelty': 'hybrid_models',
     'model_card': 'hybrid_models',
     'crossval': 'hybrid_models',
     'ensemble': 'hybrid_models',

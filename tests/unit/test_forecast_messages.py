@@ -22,7 +22,8 @@ def _batch(rng, vessel):
                      heading=rng.normal(size=(B, K)), z=None,
                      band_lower=hybrid[:, None] - 1.0 - rng.random((B, len(LEVELS), K, n)),
                      band_upper=hybrid[:, None] + 1.0 + rng.random((B, len(LEVELS), K, n)),
-                     band_radius=rng.random((len(LEVELS), K)))
+                     band_radius=rng.random((len(LEVELS), K)),
+                     bound_available=rng.random((B, K)))
 
 
 def _field_by_field(served, t_end, arrays, i, assumed):
@@ -36,7 +37,8 @@ def _field_by_field(served, t_end, arrays, i, assumed):
     msg.state_names, msg.state_units = list(spec.state_names), list(spec.state_units)
     msg.vessel = spec.name
     msg.control_names, msg.control_units = list(spec.control_names), list(spec.control_units)
-    for name in ('hybrid', 'physics', 'x', 'y', 'heading', 'band_lower', 'band_upper'):
+    for name in ('hybrid', 'physics', 'x', 'y', 'heading', 'band_lower', 'band_upper',
+                 'bound_available'):
         setattr(msg, name, array('d', getattr(arrays, name)[i].ravel().tolist()))
     msg.band_position_radius = array('d', arrays.band_radius.ravel().tolist())
     msg.band_levels, msg.band_note = list(LEVELS), served.band_note
@@ -63,6 +65,6 @@ def test_each_message_carries_its_own_forecast_and_the_batch_alike():
         assert deserialize_message(serialize_message(msg), Forecast) == msg
     # A field replaced in one message (a withheld forecast) is replaced in that one alone.
     no_steps(out[0])
-    assert out[0].horizon == 0 and len(out[0].hybrid) == 0
+    assert out[0].horizon == 0 and len(out[0].hybrid) == len(out[0].bound_available) == 0
     assert out[1].horizon == K and list(out[1].hybrid) == arrays.hybrid[1].ravel().tolist()
     assert out[2].plan_id == '' and out[1].plan_id == 'plan-1'

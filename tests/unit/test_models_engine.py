@@ -112,8 +112,8 @@ batch = engine.forecast(z, c, future)
 alone = [engine.forecast(z, c, future[k]) for k in (0, 31, 32, 63)]
 # Each shard's program runs where its parameters are: NumPy inputs follow them there.
 placed = [sorted(d.id for d in engine._compiled(
-    engine._device_params[k], z, c, future[:32], np.zeros(32, bool), turning=False)[0].devices())
-    for k in range(len(engine.devices))]
+    engine._device_params[k], z, c, future[:32], np.zeros(32, bool),
+    turning=False)['hybrid'].devices()) for k in range(len(engine.devices))]
 print(json.dumps({
     'devices': len(engine.devices), 'shards': engine._shards(64), 'placed': placed,
     'device_ids': [d.id for d in engine.devices],
@@ -287,8 +287,9 @@ def test_the_gpu_program_at_full_precision_forecasts_as_the_cpu_program():
             future.astype(np.float32), np.zeros(4, bool))
     plain = engine._compiled(*args, turning=False)
     full = jax.jit(engine._full_precision, static_argnames='turning')(*args, turning=False)
-    for a, b in zip(plain, full, strict=True):
-        np.testing.assert_array_equal(np.asarray(a), np.asarray(b))
+    assert plain.keys() == full.keys()
+    for name in plain:
+        np.testing.assert_array_equal(np.asarray(plain[name]), np.asarray(full[name]))
 
 
 @pytest.mark.skipif(bool(_gpu_absent()), reason=_gpu_absent() or 'a GPU is present')

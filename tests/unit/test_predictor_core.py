@@ -179,3 +179,32 @@ def test_a_clock_jump_clears_the_window_and_counts(run):
     assert core.pending is None and core.counts['clock_resets'] == 1
     with core.lock:
         assert not core.assemble(START + SECONDS).ready
+
+
+def test_a_model_served_with_the_novelty_fade_reports_the_share_of_its_bound(run):
+    from hybrid_models.checkpoint import load_model, read_header
+    from hybrid_models.novelty import calibrate
+
+    path = default_model_path()
+    model, _ = load_model(path)
+    # Trained, as far as the fade knows, on inputs about the normalisation's centre alone.
+    rng = np.random.default_rng(0)
+    n = run.vessel.n_state + run.vessel.n_control
+    model.novelty = calibrate(rng.normal(scale=0.05, size=(200, n)), np.empty((0, n)))
+    model.novelty_fade = True
+    engine = Forecaster.from_model(model, model_id='faded', config=read_header(path))
+    outcomes = {}
+    for name, served in (('plain', run.engine), ('faded', engine)):
+        p = dict(predictor_defaults())
+        labels = {topic: f'/vessel/{topic}' for topic in run.topic_map.topics}
+        core = PredictorCore(served, run.vessel, run.topic_map, p, labels, sim_time=False)
+        feed(core, run, range(SECONDS - 1))
+        now = START + SECONDS - 1
+        outcomes[name] = core.forecast(core.next_job(lambda now=now: now), now).message
+    assert len(outcomes['plain'].bound_available) == 0
+    msg = outcomes['faded']
+    share = np.asarray(msg.bound_available)
+    assert share.shape == (msg.horizon,) and ((share > 0) & (share <= 1)).all()
+    assert share.min() < 0.5
+    correction = np.abs(np.reshape(np.subtract(msg.hybrid, msg.physics), (msg.horizon, -1)))
+    assert (correction <= share[:, None] * np.asarray(msg.residual_bound) + 1e-9).all()

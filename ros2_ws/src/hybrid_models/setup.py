@@ -25,6 +25,7 @@ setup(
         'evaluate = hybrid_models.cli.evaluate:main',
         'set_threshold = hybrid_models.cli.set_threshold:main',
         'set_bands = hybrid_models.cli.set_bands:main',
+        'set_novelty = hybrid_models.cli.set_novelty:main',
         'reproduce_table2 = hybrid_models.cli.reproduce_table2:main',
         'reproduce_table3 = hybrid_models.cli.reproduce_table3:main',
         'compare_physics = hybrid_models.cli.compare_physics:main',

@@ -6,8 +6,8 @@ STUDY is the --out folder of ``offline/crossval.py --fold-by ...``, LABEL one of
 hybrids; the table goes to stdout and, with OUT, to OUT/unseen_kind_probe.md.
 
 Issue #47 asked for a bound that fades towards the physics where the correction's inputs
-leave what training covered. Before building one, this measures whether that would act
-where the hybrid harms. Per fold and seed:
+leave what training covered. This measures whether that would act where the hybrid
+harms, and what the fade as built does (``hybrid_models.novelty``). Per fold and seed:
 
 - **new inputs:** the share of the held-out runs' correction inputs (normalised
   controls and one-step physics outputs from the measured states, as the LSTM reads
@@ -16,7 +16,9 @@ where the hybrid harms. Per fold and seed:
   training runs; S + 1e-3 I), and farther than twice that radius: what a bound scaled
   by the distance would cut;
 - **the bound's effect:** the per-state RMSE over the held-out forecasts at the served
-  threshold and at a tenth of it, beside the physics alone's;
+  threshold, at a tenth of it, and at it served with the novelty fade (the model's own
+  calibration, ``set_novelty on``), with the share of the bound the fade left, mean and
+  least over the held-out forecast steps; beside the physics alone's;
 - **the seeds' disagreement:** served as one ensemble (the mean of their corrections at
   every step), the share of held-out steps whose spread of the members' corrections
   (per state, in units of the residual scale) exceeds the validation forecasts' 99th
@@ -32,10 +34,12 @@ import sys
 import numpy as np
 import torch
 
+from hybrid_models import novelty
 from hybrid_models.checkpoint import load_model
 from hybrid_models.data import forecast_windows, load_runs
+from hybrid_models.engine import Forecaster
 from hybrid_models.evaluation import PhysicsOnly
-from hybrid_models.hybrid_step import correction
+from hybrid_models.hybrid_step import correction, correction_input
 from hybrid_models.metrics import forecast_metrics
 from hybrid_models.models import predict
 from hybrid_models.studies.crossval import read_study, run_dir
@@ -43,24 +47,35 @@ from hybrid_models.training.train import MODEL_FILE
 from vessel_datasets.format import read_dataset
 
 QUANTILE = 0.99   # of the validation inputs' distance: "inside what training covered"
-RIDGE = 1e-3      # on the normalised inputs' covariance
 
 
 @torch.no_grad()
 def correction_inputs(model, runs) -> np.ndarray:
     """Return the LSTM's inputs (N, n_control + n_state) along runs, from measured states."""
+    weights = {k: getattr(model, k) for k in ('state_mean', 'state_std', 'control_mean',
+                                              'control_std')}
     rows = []
     for run in runs:
         z, c = torch.as_tensor(run.z[:-1].copy()), torch.as_tensor(run.c[:-1].copy())
-        rows.append(torch.cat([model.nc(c), model.nz(model.physical(z, c))], -1).numpy())
+        rows.append(correction_input(weights, model.physical(z, c), c).numpy())
     return np.concatenate(rows).astype(np.float64)
 
 
 def distance(x: np.ndarray, train: np.ndarray) -> np.ndarray:
     """Return the RMS Mahalanobis distance of rows x from the rows of ``train``."""
-    cov = np.atleast_2d(np.cov(train, rowvar=False)) + RIDGE * np.eye(train.shape[1])
-    w = (x - train.mean(axis=0)) @ np.linalg.cholesky(np.linalg.inv(cov))
-    return np.sqrt((w * w).sum(axis=-1) / x.shape[1])
+    return novelty.distance(x, novelty.calibrate(train, train).weights())[:, 0]
+
+
+@torch.no_grad()
+def faded(model, windows) -> tuple[np.ndarray, np.ndarray]:
+    """Return the model's forecasts served with the novelty fade, and each step's share."""
+    model.novelty_fade = True
+    try:
+        share = Forecaster.from_model(model).forecast_each(
+            windows.z_window, windows.c_window, windows.c_future).available
+        return predict(model, windows), share
+    finally:
+        model.novelty_fade = False
 
 
 @torch.no_grad()
@@ -109,11 +124,13 @@ def probe(study: Path, label: str) -> list[dict]:
             served = model.relative_threshold
             with model.served_at(served / 10):
                 tenth = rmse(predict(model, windows))
+            pred, share = faded(model, windows)
             rows.append({'fold': fold.index, 'forecasts': len(windows), 'seed': seed,
                          'beyond': float(np.mean(d > radius)),
                          'beyond_twice': float(np.mean(d > 2 * radius)),
                          'threshold': served, 'served': rmse(predict(model, windows)),
-                         'tenth': tenth})
+                         'tenth': tenth, 'faded': rmse(pred),
+                         'share': [float(share.mean()), float(share.min())]})
         validation = forecast_windows(val, protocol['window'], protocol['horizon'],
                                       max(1, protocol['horizon'] // 3), protocol['target'])
         radius = np.quantile(ensemble_forecast(members, validation)[1], QUANTILE, axis=0)
@@ -132,23 +149,27 @@ def markdown(rows: list[dict]) -> str:
     """Return the rows as a Markdown table (RMSE per state: served / a tenth of it)."""
     states = list(rows[0]['served'])
     lines = ['| fold (forecasts) | seed | inputs beyond the radius | beyond twice it | '
-             'served T | ' + ' | '.join(f'{s} RMSE at T / at T/10' for s in states) + ' |',
-             '|---|---|---|---|---|' + '---|' * len(states)]
+             'served T | ' + ' | '.join(f'{s} RMSE at T / at T/10 / faded' for s in states)
+             + ' | share of the bound faded, mean / least |',
+             '|---|---|---|---|---|' + '---|' * (len(states) + 1)]
     for r in rows:
         if 'spread_beyond' in r:
             shares = ', '.join(f'{s} {v:.0%}' for s, v in r['spread_beyond'].items())
             cells = ' | '.join(f"{r['served'][s]:.4f}" for s in states)
             lines.append(f"| {r['fold']} ({r['forecasts']}) | ensemble of the seeds "
                          f"(steps whose spread is beyond the radius: {shares}) | | | | "
-                         f"{cells} |")
+                         f"{cells} | |")
             continue
         if 'beyond' not in r:
             cells = ' | '.join(f"{r['served'][s]:.4f}" for s in states)
-            lines.append(f"| {r['fold']} ({r['forecasts']}) | physics alone | | | | {cells} |")
+            lines.append(f"| {r['fold']} ({r['forecasts']}) | physics alone | | | | {cells} | "
+                         f"|")
             continue
-        cells = ' | '.join(f"{r['served'][s]:.4f} / {r['tenth'][s]:.4f}" for s in states)
+        cells = ' | '.join(f"{r['served'][s]:.4f} / {r['tenth'][s]:.4f} / "
+                           f"{r['faded'][s]:.4f}" for s in states)
         lines.append(f"| {r['fold']} ({r['forecasts']}) | {r['seed']} | {r['beyond']:.0%} | "
-                     f"{r['beyond_twice']:.0%} | {r['threshold']:g} | {cells} |")
+                     f"{r['beyond_twice']:.0%} | {r['threshold']:g} | {cells} | "
+                     f"{r['share'][0]:.2f} / {r['share'][1]:.2f} |")
     return '\n'.join(lines) + '\n'
 
 

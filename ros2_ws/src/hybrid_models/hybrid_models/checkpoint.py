@@ -24,6 +24,7 @@ from safetensors.torch import load_file, save_file
 import torch
 from torch import nn
 
+from hybrid_models import novelty
 from hybrid_models.checkpoint_format import (
     FORMAT,
     CheckpointError,
@@ -51,6 +52,8 @@ def save_checkpoint(path: str | Path, model: nn.Module, config: dict,
                     optimizer: torch.optim.Optimizer | None = None) -> Path:
     """Write atomically (temporary file, then rename), so a kill never leaves half a file."""
     path = Path(path)
+    if novelty.stored(model) is not None:
+        config = {**config, 'novelty': novelty.stored(model)}
     # Stored from the CPU, so a checkpoint written on a GPU loads anywhere.
     tensors = {f'model/{k}': v.detach().cpu().contiguous().clone()
                for k, v in model.state_dict().items()}
@@ -124,5 +127,17 @@ def load_model(path: str | Path) -> tuple[nn.Module, dict]:
     except (KeyError, TypeError, ValueError, RuntimeError) as exc:
         raise CheckpointError(f'{path}: checkpoint does not match its model '
                               f'({type(exc).__name__}: {exc})'.splitlines()[0]) from None
+    _restore_novelty(model, ckpt.config.get('novelty'), path)
     model.eval()
     return model, ckpt.config
+
+
+def _restore_novelty(model: nn.Module, stored: list | None, path) -> None:
+    """Give each member its calibration (``hybrid_models.novelty``) from the config."""
+    members = list(getattr(model, 'members', [model]))
+    for m, entry in zip(members, stored or [None] * len(members), strict=False):
+        if entry is not None:
+            m.novelty = novelty.Novelty.from_dict(entry)
+        if getattr(m, 'novelty_fade', False) and m.novelty is None:
+            raise CheckpointError(f'{path}: the model is served with the novelty fade but '
+                                  f'holds no novelty calibration (train it again)')

@@ -45,13 +45,14 @@ import time
 
 import numpy as np
 
+from hybrid_models import novelty
 from hybrid_models.bands import Bands, BandsError
 from hybrid_models.bound import half_width, is_constant, schedule_of, step_bounds
 from hybrid_models.checkpoint_format import CheckpointError, read_model_arrays, vessel_of
 from hybrid_models.hybrid_step import (
     ENSEMBLE_KIND as ENSEMBLE,
 )
-from hybrid_models.hybrid_step import ensemble_step, step_weights
+from hybrid_models.hybrid_step import correction_input, ensemble_step, step_weights
 from hybrid_models.metrics import heading_rate
 from hybrid_models.physical import PhysicalModel, build_physical
 from hybrid_models.physical.base import part
@@ -69,6 +70,9 @@ class Forecast:
     # (B, H, 2): the wind direction's (cos, sin) each step used, a held one turned
     # (``Forecaster.forecast``'s ``hold_wind``); None when no plan held the wind.
     wind: np.ndarray | None = None
+    # (B, H): the share of the bound each step had (``hybrid_models.novelty``; the
+    # members' mean for an ensemble); None when the model is served without the fade.
+    available: np.ndarray | None = None
 
 
 def wind_direction_columns(spec: Vessel) -> tuple[int, int] | None:
@@ -193,6 +197,21 @@ def served_bands(config: dict, spec, relative_threshold) -> tuple[Bands | None, 
     return bands, f'bands at levels {list(bands.levels)} from {bands.origin}'
 
 
+def served_novelty(member_config: dict, config: dict, members: int, cast) -> list:
+    """
+    Return each member's ``Novelty.weights`` when served with the fade, else Nones.
+
+    A model configured with the fade whose checkpoint holds no calibration is refused.
+    """
+    if not member_config.get('novelty_fade', False):
+        return [None] * members
+    stored = config.get('novelty') or [None] * members
+    if len(stored) != members or any(entry is None for entry in stored):
+        raise CheckpointError('the model is served with the novelty fade but holds no novelty '
+                              'calibration for every member (train it again)')
+    return [novelty.Novelty.from_dict(entry).weights(cast) for entry in stored]
+
+
 def members_of(state: dict, model_config: dict) -> list[dict]:
     """Return the state dict of each member: one for a hybrid, K for an ensemble."""
     if model_config.get('kind') != ENSEMBLE:
@@ -240,9 +259,13 @@ class Forecaster:
 
         arrays = {k: cast(v) for k, v in state.items()}
         self.members = len(members_of(arrays, model_config))
-        self._params = tuple({**step_weights(cell, m | {'bound': cast(self.bound)}, layers),
+        fades = served_novelty(member_config, self.config, self.members, cast)
+        self.novelty_fade = fades[0] is not None
+        self._params = tuple({**step_weights(cell, m | {'bound': cast(self.bound)}, layers,
+                                             fade),
                               'init': layer_weights(cell, m, 'init', layers)}
-                             for m in members_of(arrays, model_config))
+                             for m, fade in zip(members_of(arrays, model_config), fades,
+                                                strict=True))
         # The physical model's learned values enter the program as constants: XLA folds
         # them into its feature products (measured: 5.9 -> 4.6 ms per 900-step forecast).
         self._physical_arrays = {k: cast(v) for k, v in physical.arrays().items()}
@@ -272,6 +295,8 @@ class Forecaster:
                    platform: str = 'cpu') -> Forecaster:
         """Serve a trained torch ``HybridModel`` (its weights are copied to numpy)."""
         state = {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
+        if novelty.stored(model) is not None:
+            config = {**(config or {}), 'novelty': novelty.stored(model)}
         return cls._build(model.spec, model.describe(), state, relative_threshold, dtype,
                           model_id, config, platform)
 
@@ -347,17 +372,22 @@ class Forecaster:
                     c_t = c_t.at[:, column].set(jnp.where(hold_wind, value, c_t[:, column]))
             z_next, z_phy, _, recurrents = ensemble_step(self.cell, members, physical, z, c_t,
                                                          recurrents, self.bound_mode, bound)
-            if wind is None:
-                return (z_next, psi, recurrents), (z_next, z_phy)
-            psi = psi + dt * heading_rate(z_next, self.spec)
-            return (z_next, psi, recurrents), (z_next, z_phy, c_t[:, list(wind)])
+            out = {'hybrid': z_next, 'physics': z_phy}
+            if self.novelty_fade:
+                out['available'] = sum(novelty.available(correction_input(p, z_phy, c_t),
+                                                         p['novelty'])[:, 0]
+                                       for p in members) / len(members)
+            if wind is not None:
+                psi = psi + dt * heading_rate(z_next, self.spec)
+                out['wind'] = c_t[:, list(wind)]
+            return (z_next, psi, recurrents), out
 
         # The horizon is a static shape: each step's bound is a constant of the program.
         bounds = self.step_bounds(c_future.shape[1]).astype(self.dtype)
         psi0 = jnp.zeros((batch,), self.dtype)
         _, outputs = jax.lax.scan(step, (z0, psi0, recurrents),
                                   (jnp.swapaxes(c_future, 0, 1), bounds))
-        return tuple(jnp.swapaxes(out, 0, 1) for out in outputs)
+        return {name: jnp.swapaxes(out, 0, 1) for name, out in outputs.items()}
 
     # ------------------------------------------------------------------ public API
     def forecast(self, z_window: np.ndarray, c_window: np.ndarray,
@@ -397,10 +427,9 @@ class Forecaster:
                                   c_future[k * size:(k + 1) * size],
                                   held[k * size:(k + 1) * size], turning=turning)
                    for k in range(shards)]
-        hybrid, physics, *wind = (np.concatenate([np.asarray(part, np.float64)
-                                                  for part in parts])[:batch]
-                                  for parts in zip(*running, strict=True))
-        return Forecast(hybrid, physics, wind[0] if turning else None)
+        return Forecast(**{name: np.concatenate([np.asarray(part[name], np.float64)
+                                                 for part in running])[:batch]
+                           for name in running[0]})
 
     def forecast_each(self, z_window: np.ndarray, c_window: np.ndarray, c_future: np.ndarray,
                       progress=iter, seconds: list | None = None) -> Forecast:
@@ -412,13 +441,16 @@ class Forecaster:
         """
         hybrid = np.empty(c_future.shape[:2] + (self.spec.n_state,))
         physics = np.empty_like(hybrid)
+        available = np.empty(c_future.shape[:2]) if self.novelty_fade else None
         for i in progress(range(len(c_future))):
             started = time.perf_counter()
             out = self.forecast(z_window[i], c_window[i], c_future[i])
             if seconds is not None:
                 seconds.append(time.perf_counter() - started)
             hybrid[i], physics[i] = out.hybrid[0], out.physics[0]
-        return Forecast(hybrid, physics)
+            if available is not None:
+                available[i] = out.available[0]
+        return Forecast(hybrid, physics, available=available)
 
     def _shards(self, padded: int) -> int:
         """Return how many devices a padded batch is split across (it divides evenly)."""

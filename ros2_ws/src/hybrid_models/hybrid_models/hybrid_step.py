@@ -9,6 +9,9 @@ Torch training (``nets.HybridModel``, with autograd) and the compiled jax foreca
     res    = bound((y W_head + b_head) * residual_std)
     z_t+1  = z_phy + res
 
+(the bound scaled by the share available at the step's input for a model served with
+the novelty fade, ``hybrid_models.novelty``).
+
 An ensemble (``ensemble_step``) is K such corrections on one physics: every member's
 recurrent stack reads the same z_phy, and the step adds the mean of their bounded residuals, so
 the ensemble is still the physics plus a bounded amount.
@@ -25,6 +28,7 @@ from __future__ import annotations
 from collections.abc import Callable, Mapping
 
 from hybrid_models.bound import apply_bound
+from hybrid_models.novelty import available
 from hybrid_models.recurrent import layer_weights, stack_step
 from vessel_physics.arrays import namespace
 
@@ -32,11 +36,17 @@ ENSEMBLE_KIND = 'hybrid_ensemble'   # a checkpoint's model kind for K members on
 NORMALIZATION = ('state_mean', 'state_std', 'control_mean', 'control_std', 'residual_std')
 
 
-def step_weights(cell, state: Mapping, layers: int) -> dict:
-    """Return what ``hybrid_step`` reads, from a hybrid model's state dict (any arrays)."""
+def step_weights(cell, state: Mapping, layers: int, novelty: Mapping | None = None) -> dict:
+    """
+    Return what ``hybrid_step`` reads, from a hybrid model's state dict (any arrays).
+
+    ``novelty``: ``Novelty.weights()`` of a model served with the fade, else None.
+    """
     weights = {name: state[name] for name in NORMALIZATION}
     weights.update(head_w=state['head.weight'].T, head_b=state['head.bias'],
                    bound=state['bound'], recurrent=layer_weights(cell, state, 'lstm', layers))
+    if novelty is not None:
+        weights['novelty'] = novelty
     return weights
 
 
@@ -75,13 +85,25 @@ def ensemble_step(cell, members: tuple, physical: Callable, z, c, recurrents: tu
     return z_phy + residual, z_phy, residual, tuple(states)
 
 
+def correction_input(weights: Mapping, z_phy, c):
+    """Return what the correction reads, the normalised (c, z_phy) (..., n_control + n_state)."""
+    xp = namespace(z_phy, c)
+    return xp.concat([(c - weights['control_mean']) / weights['control_std'],
+                      (z_phy - weights['state_mean']) / weights['state_std']], axis=-1)
+
+
 def correction(cell, weights: Mapping, z_phy, c, recurrent: tuple, bound_mode: str | None,
                between: Callable | None = None, bound=None):
-    """Return one member's bounded residual (state units) and its new recurrent state."""
-    xp = namespace(z_phy, c)
-    x = xp.concat([(c - weights['control_mean']) / weights['control_std'],
-                   (z_phy - weights['state_mean']) / weights['state_std']], axis=-1)
+    """
+    Return one member's bounded residual (state units) and its new recurrent state.
+
+    Weights with ``novelty`` (a model served with the fade, ``hybrid_models.novelty``)
+    scale the bound by the share available at this step's input.
+    """
+    x = correction_input(weights, z_phy, c)
     y, recurrent = stack_step(cell, x, recurrent, weights['recurrent'], between)
+    if bound_mode is not None and 'novelty' in weights:
+        bound = (weights['bound'] if bound is None else bound) * available(x, weights['novelty'])
     return bounded_residual(y, weights, bound_mode, bound), recurrent
 
 

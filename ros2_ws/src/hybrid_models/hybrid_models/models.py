@@ -32,7 +32,8 @@ def build_model(cfg: dict, spec: Vessel) -> nn.Module:
                             float(cfg.get('dropout', 0.25)), cfg.get('bound_mode', 'tanh'),
                             bool(cfg.get('bound_in_training', False)),
                             # Checkpoints older than the key were trained from torch's init.
-                            cfg.get('correction_init', 'random'), cfg.get('cell', 'lstm'))
+                            cfg.get('correction_init', 'random'), cfg.get('cell', 'lstm'),
+                            bool(cfg.get('novelty_fade', False)))
         model.relative_threshold = cfg.get('relative_threshold')
         return model
     if kind == ENSEMBLE:

@@ -37,6 +37,7 @@ from hybrid_models.bound import (
 from hybrid_models.compiled_physics import CompiledStep, compile_step
 from hybrid_models.hybrid_step import bounded_residual, hybrid_step, step_weights
 from hybrid_models.normalization import Normalizer
+from hybrid_models.novelty import Novelty
 from hybrid_models.physical import PhysicalModel
 from hybrid_models.recurrent import cell_of, from_torch, torch_stack
 from vessel_description import Vessel
@@ -207,7 +208,7 @@ class HybridModel(_Normalized, ServedThreshold):
     def __init__(self, spec: Vessel, physical: PhysicalModel, hidden: int = 64,
                  layers: int = 2, dropout: float = 0.25, bound_mode: str = 'tanh',
                  bound_in_training: bool = False, correction_init: str = 'zero',
-                 cell: str = 'lstm'):
+                 cell: str = 'lstm', novelty_fade: bool = False):
         super().__init__(spec)
         if correction_init not in CORRECTION_INITS:
             raise ValueError(f'correction_init must be one of {CORRECTION_INITS}, got '
@@ -230,6 +231,10 @@ class HybridModel(_Normalized, ServedThreshold):
         self.register_buffer('output_range', torch.full((spec.n_state,), math.nan))
         self.register_buffer('bound', torch.full((spec.n_state,), math.inf))
         self.relative_threshold = None   # T, None or a schedule (hybrid_models.bound)
+        # Where the correction was trained (hybrid_models.novelty): the calibration,
+        # stored in the checkpoint's config, and whether the served bound fades by it.
+        self.novelty: Novelty | None = None
+        self.novelty_fade = bool(novelty_fade)
 
     def set_threshold(self, relative_threshold) -> None:
         """
@@ -274,7 +279,17 @@ class HybridModel(_Normalized, ServedThreshold):
         """Return the step's weights as views of the parameters (gradients flow)."""
         return step_weights(self.cell,
                             dict(self.named_parameters()) | dict(self.named_buffers()),
-                            self.layers)
+                            self.layers, self.served_novelty())
+
+    def served_novelty(self) -> dict | None:
+        """Return the fade's ``Novelty.weights`` as tensors when it is served, else None."""
+        if not self.novelty_fade:
+            return None
+        if self.novelty is None:
+            raise ValueError('the novelty fade is on but the model has no novelty calibration '
+                             '(train it again)')
+        return self.novelty.weights(lambda a: torch.as_tensor(
+            a, dtype=self.bound.dtype, device=self.bound.device))
 
     def _between_layers(self):
         # The fused module's dropout between stacked layers, which teacher forcing applies.
@@ -318,7 +333,8 @@ class HybridModel(_Normalized, ServedThreshold):
                 'physical': self.physical.describe(),
                 'bound_mode': self.bound_mode, 'bound_in_training': self.bound_in_training,
                 'correction_init': self.correction_init,
-                'relative_threshold': self.relative_threshold}
+                'relative_threshold': self.relative_threshold,
+                'novelty_fade': self.novelty_fade}
 
 
 def count_parameters(model: nn.Module) -> int:

@@ -53,6 +53,11 @@ class Served:
     band_note: str = ''
 
 
+# The fields a Forecast holds a row of per step, named as ``forecasting.Published``'s.
+STEP_ROWS = ('hybrid', 'physics', 'x', 'y', 'heading', 'z', 'band_lower', 'band_upper',
+             'bound_available')
+
+
 def doubles(values) -> array:
     """
     Return values as a flat array('d') for a float64[] message field.
@@ -102,8 +107,7 @@ def forecast_messages(served: Served, t_end: float, forecasts: Published,
         alike.update(band_levels=list(served.band_levels),
                      band_position_radius=doubles(forecasts.band_radius))
     rows = {name: _Rows(getattr(forecasts, name))
-            for name in ('hybrid', 'physics', 'x', 'y', 'heading', 'z', 'band_lower',
-                         'band_upper') if getattr(forecasts, name) is not None}
+            for name in STEP_ROWS if getattr(forecasts, name) is not None}
     # A shallow copy of one filled message is a third of a message built field by field.
     template = Forecast(**alike)
     out = []
@@ -121,8 +125,7 @@ def forecast_messages(served: Served, t_end: float, forecasts: Published,
 def no_steps(msg: Forecast) -> None:
     """Empty a withheld forecast's steps in place (horizon 0); its names and ids stay."""
     msg.horizon = 0
-    for name in ('hybrid', 'physics', 'x', 'y', 'heading', 'z', 'band_lower', 'band_upper',
-                 'band_position_radius'):
+    for name in (*STEP_ROWS, 'band_position_radius'):
         setattr(msg, name, array('d'))
 
 

@@ -81,15 +81,17 @@ class Published:
     band_lower: np.ndarray | None = None
     band_upper: np.ndarray | None = None
     band_radius: np.ndarray | None = None
+    bound_available: np.ndarray | None = None   # (B, K) the bound's share (with the fade)
 
 
 def published(spec, pose, hybrid: np.ndarray, physics: np.ndarray, bands=None,
-              stride: int = 1) -> Published:
+              stride: int = 1, available: np.ndarray | None = None) -> Published:
     """
     Return forecasts (B, H, n_state) FRD from the window's ``pose`` in the published frames.
 
     ``stride`` > 1 keeps the steps ending at every ``stride`` steps (a what-if request's
-    answer_period; ``plans.answer_steps``); ``bands`` is the model's (``engine.bands``).
+    answer_period; ``plans.answer_steps``); ``bands`` is the model's (``engine.bands``);
+    ``available`` (B, H) the share of the bound each step had (``engine.Forecast``).
     """
     path = track(hybrid, pose, spec)   # one pass, all plans
     keep = answer_slice(stride)
@@ -99,7 +101,8 @@ def published(spec, pose, hybrid: np.ndarray, physics: np.ndarray, bands=None,
     out = dict(steps=answer_steps(hybrid.shape[1], stride),
                hybrid=frames.states_frd_to_flu(hybrid[:, keep], names),
                physics=frames.states_frd_to_flu(physics[:, keep], names), x=x, y=y,
-               heading=frames.heading_ned_to_enu(path.heading[..., keep]), z=z)
+               heading=frames.heading_ned_to_enu(path.heading[..., keep]), z=z,
+               bound_available=None if available is None else available[:, keep])
     if bands is not None:
         lower, upper, radius = bands.bounds(hybrid)
         out['band_lower'], out['band_upper'] = frames.interval_frd_to_flu(
@@ -120,4 +123,5 @@ def forecast(engine: Forecaster, spec, result, futures: list[Future], stride: in
     made, _ = forecast_holding_wind(engine, result.states, result.controls, plans,
                                     [f.holds_wind for f in futures])
     return made.hybrid, made.physics, published(spec, result.pose, made.hybrid,
-                                                made.physics, engine.bands, stride)
+                                                made.physics, engine.bands, stride,
+                                                made.available)

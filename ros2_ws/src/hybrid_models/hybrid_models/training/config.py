@@ -46,6 +46,10 @@ DEFAULTS: dict = {
         'relative_threshold': None,   # the largest threshold served, e.g. 0.15 (None: no
                                       # cap); the served one is chosen on validation
                                       # (training.selection)
+        # Serve the bound faded where the correction's inputs leave what training and
+        # validation covered (hybrid_models.novelty; every hybrid is calibrated, this
+        # turns the fade on; set_novelty turns it on or off afterwards).
+        'novelty_fade': False,
         'lags': [1, 2, 4, 8],   # QLag: candidate lags, chosen on validation
         'lag': 4,
         'ridge': 1.0e-8,

@@ -23,10 +23,12 @@ import numpy as np
 import torch
 import yaml
 
+from hybrid_models import novelty
 from hybrid_models.bands import BandsError, calibrate
 from hybrid_models.bound import output_range
 from hybrid_models.checkpoint import load_checkpoint, save_checkpoint
 from hybrid_models.data import dataset_hash, forecast_windows, load_runs
+from hybrid_models.hybrid_step import correction_input
 from hybrid_models.metrics import normalized_rmse_sum
 from hybrid_models.models import build_model, predict
 from hybrid_models.nets import HybridModel
@@ -398,7 +400,24 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
     info['bound']['range_from'] = ('all one-step outputs' if outputs.complete else
                                    f'a uniform sample of {outputs.capacity} of '
                                    f'{outputs.seen} one-step outputs')
+    model.novelty = calibrate_novelty(model, fitted, stores)
     return z_phy['train'], z_phy['val'], info
+
+
+def calibrate_novelty(model: HybridModel, fitted, stores: dict) -> novelty.Novelty:
+    """Return where the correction is trained (``hybrid_models.novelty``), from the pairs."""
+    ns, nc = model.spec.n_state, model.spec.n_control
+    norm = {name: getattr(model, name).double().numpy()
+            for name in ('state_mean', 'state_std', 'control_mean', 'control_std')}
+
+    def inputs(rows: np.ndarray) -> np.ndarray:
+        z, c = rows[:, :ns].astype(np.float64), rows[:, ns:ns + nc].astype(np.float64)
+        return correction_input(norm, fitted.predict(z, c), c)
+
+    pairs = {split: stores[split].pairs for split in ('train', 'val')}
+    return novelty.calibrate(inputs(pairs['train'].rows()), inputs(pairs['val'].rows()),
+                     f"{len(pairs['train'].rows())} training and {len(pairs['val'].rows())} "
+                     f"validation one-step inputs")
 
 
 def _envelope_remedy(physical) -> str | None:
