@@ -32,7 +32,7 @@ def test_every_documented_conversion_still_gives_its_documented_figures(capsys):
 @pytest.mark.slow
 @pytest.mark.timeout(1800)    # a diagnosis and three trainings: minutes
 @pytest.mark.skipif(not REAL.is_dir(), reason=f'{REAL} (third-party recordings) is absent')
-def test_the_readme_real_data_studies_repeat_their_seed_0(capsys):
+def test_the_readme_real_data_studies_repeat_their_committed_seeds(capsys):
     code = claims.main(['check', '--only', 'snuboat', 'kvlcc2_hsva', '--studies',
                         '--no-diagnoses'])
     out = json.loads(capsys.readouterr().out)
@@ -45,23 +45,24 @@ def test_the_readme_real_data_studies_repeat_their_seed_0(capsys):
 def test_a_study_whose_seed_0_moves_or_loses_to_its_physics_is_named():
     """The committed seed 0 is the claim: 3 % off, a row lost, a hybrid behind its physics."""
     name = 'snuboat_heldout'
-    committed = claims._seed0_rows(json.loads(
-        (claims.REPO / claims.STUDIES[name][1]).read_text())['rows'])
-    assert committed['hybrid']['physics'] == 'hyd physics'
+    committed = claims.seed_rows(json.loads(
+        (claims.REPO / claims.STUDIES[name].results).read_text())['rows'])
+    assert committed['hybrid'][0]['physics'] == 'hyd physics'
     same = {'exit': 0, 'rows': committed}
     assert claims.study_differences(name, same) == []
     rows = json.loads(json.dumps(committed))
-    rows['lstm']['trajectory'] *= 1.02                      # within
-    rows['hybrid']['trajectory'] = 0.4                      # moved, still ahead of 0.427
+    rows['lstm'][0]['trajectory'] *= 1.02                      # within
+    rows['hybrid'][0]['trajectory'] = 0.4                      # moved, still ahead of 0.427
     moved = claims.study_differences(name, {'exit': 0, 'rows': rows})
     assert moved == ['snuboat_heldout: hybrid seed 0 held-out trajectory error 0.4, the '
                      'committed 0.2567 (tolerance 3%)'], moved
-    rows['hybrid']['trajectory'] = committed['hybrid']['trajectory']
-    rows['hyd physics']['trajectory'] = 0.25
+    rows['hybrid'][0]['trajectory'] = committed['hybrid'][0]['trajectory']
+    rows['hyd physics'][0]['trajectory'] = 0.25
     moved = claims.study_differences(name, {'exit': 0, 'rows': rows})
-    assert any('hybrid no longer forecasts better than its physics' in m for m in moved)
-    rows['hyd physics']['trajectory'] = committed['hyd physics']['trajectory']
-    rows['hybrid']['harms'] = ['state error at step 50', 'position at step 100']
+    assert any('hybrid seed 0 no longer forecasts better than its physics' in m
+               for m in moved)
+    rows['hyd physics'][0]['trajectory'] = committed['hyd physics'][0]['trajectory']
+    rows['hybrid'][0]['harms'] = ['state error at step 50', 'position at step 100']
     assert claims.study_differences(name, {'exit': 0, 'rows': rows}) == [
         'snuboat_heldout: hybrid seed 0 is worse than its physics alone (state error at '
         'step 50; position at step 100)']
@@ -70,6 +71,29 @@ def test_a_study_whose_seed_0_moves_or_loses_to_its_physics_is_named():
         name, {'exit': 0, 'rows': rows})
     assert claims.study_differences(name, {'exit': 1, 'rows': {}}) == [
         "snuboat_heldout: the study's tool ended with exit 1"]
+
+
+def test_a_study_that_claims_every_seed_keeps_every_seed_and_its_ensemble():
+    """The by-kind study: a later seed moved or worse than its physics is named by seed."""
+    name = 'snuboat_bykind'
+    assert claims.STUDIES[name].seeds == 3
+    committed = claims.seed_rows(json.loads(
+        (claims.REPO / claims.STUDIES[name].results).read_text())['rows'], 3)
+    assert [len(committed[label]) for label in claims.STUDIES[name].labels] == [3, 1, 3, 1]
+    assert claims.study_differences(name, {'exit': 0, 'rows': committed}) == []
+    rows = json.loads(json.dumps(committed))
+    rows['hybrid'][2]['harms'] = ['state error at step 50']
+    rows['hybrid'][2]['trajectory'] *= 1.2
+    rows['hybrid, ensemble of 3 seeds'][0]['harms'] = ['position at step 200']
+    moved = claims.study_differences(name, {'exit': 0, 'rows': rows})
+    figure = committed['hybrid'][2]['trajectory']
+    assert moved == [
+        f'snuboat_bykind: hybrid seed 2 held-out trajectory error {1.2 * figure:.4g}, the '
+        f'committed {figure:.4g} (tolerance 3%)',
+        'snuboat_bykind: hybrid seed 2 is worse than its physics alone (state error at '
+        'step 50)',
+        'snuboat_bykind: hybrid, ensemble of 3 seeds seed 0 is worse than its physics alone '
+        '(position at step 200)'], moved
 
 
 def test_a_study_is_trained_again_apart_with_the_kernels_of_its_figures(monkeypatch,
@@ -90,8 +114,9 @@ def test_a_study_is_trained_again_apart_with_the_kernels_of_its_figures(monkeypa
     got = claims.study_figures('snuboat_heldout', tmp_path / 'ds', tmp_path)
     assert Path(seen['cmd'][1]) == claims.REPO / 'offline' / 'crossval.py'
     assert {k: seen['env'].get(k) for k in claims.PINNED_ISA} == claims.PINNED_ISA
-    assert got == {'exit': 0, 'rows': {'hybrid': {'trajectory': 0.3, 'physics': 'hyd physics',
-                                                  'harms': []}}}
+    assert seen['cmd'][seen['cmd'].index('--seeds') + 1] == '1'
+    assert got == {'exit': 0, 'rows': {'hybrid': [{'trajectory': 0.3,
+                                                   'physics': 'hyd physics', 'harms': []}]}}
     monkeypatch.setattr(claims.subprocess, 'run', lambda cmd, env, **_: SimpleNamespace(
         returncode=2, stderr='fold 0 ...\ncrossval: error: no dataset at ds\n'))
     failed = claims.study_figures('snuboat_heldout', tmp_path / 'ds', tmp_path)
@@ -138,7 +163,8 @@ def test_a_figure_that_moves_beyond_its_tolerance_is_named():
 def test_every_script_that_trains_committed_figures_pins_their_kernels():
     """The results' run.sh scripts train with tools/pinned_kernels.env, as the check does."""
     assert claims.PINNED_ISA == {'ATEN_CPU_CAPABILITY': 'avx2',
-                                 'MKL_ENABLE_INSTRUCTIONS': 'AVX2', 'ONEDNN_MAX_CPU_ISA': 'AVX2'}
+                                 'MKL_ENABLE_INSTRUCTIONS': 'AVX2', 'ONEDNN_MAX_CPU_ISA': 'AVX2',
+                                 'OPENBLAS_CORETYPE': 'Haswell'}
     scripts = sorted((claims.REPO / 'docs' / 'results').rglob('run.sh'))
     training = [s for s in scripts if any(tool in s.read_text() for tool in (
         'crossval', 'workflow.py', 'train.py', 'reproduce_table'))]
