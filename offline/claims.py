@@ -25,11 +25,12 @@ real-data table (``STUDIES``) on a reduced protocol, seed 0 of their seeds (ever
 where the README claims something of each): each named row's held-out trajectory error
 must stay within ``STUDY_TOLERANCE`` of the committed one of the same seed, and each
 hybrid better than its physics alone over the trajectory and no worse at any reported
-step (``selection.harms``). The studies are trained again in processes
-of their own with the AVX2 kernels of torch, MKL, oneDNN and numpy's OpenBLAS
-(``PINNED_ISA``, from ``tools/pinned_kernels.env``), those the committed figures were
-derived with: on a CPU with AVX-512 the same seed takes other rounding paths, and a
-training lands elsewhere within its seeds' spread.
+step (``selection.harms``). The studies are trained again in processes of their own
+with the AVX2 kernels of torch, MKL, oneDNN and numpy's OpenBLAS, and OpenBLAS's thread
+count (``PINNED_ISA``, from ``tools/pinned_kernels.env``), those the committed figures
+were derived with: on a CPU with AVX-512, or with another BLAS thread count, the same
+seed takes other rounding paths, and a training lands elsewhere within its seeds'
+spread.
 """
 
 from __future__ import annotations

@@ -164,7 +164,7 @@ def test_every_script_that_trains_committed_figures_pins_their_kernels():
     """The results' run.sh scripts train with tools/pinned_kernels.env, as the check does."""
     assert claims.PINNED_ISA == {'ATEN_CPU_CAPABILITY': 'avx2',
                                  'MKL_ENABLE_INSTRUCTIONS': 'AVX2', 'ONEDNN_MAX_CPU_ISA': 'AVX2',
-                                 'OPENBLAS_CORETYPE': 'Haswell'}
+                                 'OPENBLAS_CORETYPE': 'Haswell', 'OPENBLAS_NUM_THREADS': '2'}
     scripts = sorted((claims.REPO / 'docs' / 'results').rglob('run.sh'))
     training = [s for s in scripts if any(tool in s.read_text() for tool in (
         'crossval', 'workflow.py', 'train.py', 'reproduce_table'))]
