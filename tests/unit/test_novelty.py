@@ -44,6 +44,11 @@ def test_a_calibration_survives_its_checkpoint_entry_and_refuses_too_few_inputs(
         novelty.calibrate(np.ones((1, 3)), np.ones((0, 3)))
 
 
+def saved(path, model):
+    """Write ``model`` as a checkpoint at ``path`` (the config's vessel and description)."""
+    save_checkpoint(path, model, {'vehicle': model.spec.to_dict(), 'model': model.describe()})
+
+
 def calibrated(model, steps):
     """Calibrate ``model`` on the inputs of its own plain forecast's first ``steps`` steps."""
     z, c, future = inputs(batch=4)
@@ -86,16 +91,16 @@ def test_served_with_the_fade_a_hybrid_keeps_its_plain_bound_inside_and_less_out
 def test_the_fade_and_its_calibration_live_in_the_checkpoint(tmp_path):
     model = calibrated(make_model('lin', threshold=0.15), 1)
     path = tmp_path / 'model.safetensors'
-    save_checkpoint(path, model, {'vehicle': model.spec.to_dict(), 'model': model.describe()})
+    saved(path, model)
     loaded, config = load_model(path)
     assert loaded.novelty_fade is False and config['novelty'][0]['radius'] > 0
     assert Forecaster.from_checkpoint(path).forecast(*inputs(batch=1)).available is None
     model.novelty_fade = True
-    save_checkpoint(path, model, {'vehicle': model.spec.to_dict(), 'model': model.describe()})
+    saved(path, model)
     served = Forecaster.from_checkpoint(path).forecast(*inputs(batch=1))
     assert served.available[0, 0] == 1.0 and served.available[0, -1] < 0.5
     model.novelty = None
-    save_checkpoint(path, model, {'vehicle': model.spec.to_dict(), 'model': model.describe()})
+    saved(path, model)
     with pytest.raises(CheckpointError, match='holds no novelty calibration'):
         load_model(path)
     with pytest.raises(CheckpointError, match='holds no novelty calibration'):
@@ -108,7 +113,7 @@ def test_set_novelty_turns_the_fade_on_and_off_and_refuses_an_uncalibrated_model
 
     model = calibrated(make_model('lin', threshold=0.15), 1)
     path, faded = tmp_path / 'model.safetensors', tmp_path / 'faded.safetensors'
-    save_checkpoint(path, model, {'vehicle': model.spec.to_dict(), 'model': model.describe()})
+    saved(path, model)
     assert set_novelty([str(path), 'on', '--out', str(faded)]) == 0
     assert 'novelty fade on' in capsys.readouterr().out
     assert load_model(faded)[0].novelty_fade and not load_model(path)[0].novelty_fade
@@ -119,7 +124,7 @@ def test_set_novelty_turns_the_fade_on_and_off_and_refuses_an_uncalibrated_model
     off, _ = torch_forecast(load_model(faded)[0].double(), *inputs(batch=1), torch.float64)
     np.testing.assert_array_equal(off, plain)
     model.novelty = None
-    save_checkpoint(path, model, {'vehicle': model.spec.to_dict(), 'model': model.describe()})
+    saved(path, model)
     assert set_novelty([str(path), 'on']) == 2
     assert 'holds no novelty calibration' in capsys.readouterr().err
 
@@ -145,3 +150,20 @@ def test_an_ensemble_fades_each_member_by_its_own_calibration_as_torch_does(tmp_
     assert len(config['novelty']) == 2 and all(m.novelty_fade for m in loaded.members)
     again, _ = torch_forecast(loaded.double(), z, c, future, torch.float64)
     np.testing.assert_allclose(again, expected, rtol=1e-6)   # weights stored in float32
+
+
+def test_a_model_without_a_bound_is_refused_in_one_line_by_both_bound_tools(tmp_path, capsys):
+    from hybrid_models.cli.set_novelty import main as set_novelty
+    from hybrid_models.cli.set_threshold import main as set_threshold
+    from hybrid_models.models import build_model
+
+    lstm = build_model({'kind': 'lstm', 'hidden': 8, 'layers': 1}, make_model('lin', 0.1).spec)
+    path = tmp_path / 'lstm.safetensors'
+    saved(path, lstm)
+    assert set_threshold([str(path), '0.1']) == 2
+    assert set_novelty([str(path), 'on']) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"set_threshold: error: {path}: only hybrid models (and ensembles of them) have a "
+        f"bound (this is 'lstm')",
+        f"set_novelty: error: {path}: only hybrid models (and ensembles of them) have a bound "
+        f"to fade (this is 'lstm')"]

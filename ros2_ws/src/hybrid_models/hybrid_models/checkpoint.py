@@ -33,6 +33,7 @@ from hybrid_models.checkpoint_format import (
     vessel_of,
     write_file,
 )
+from hybrid_models.ensemble import is_hybrid
 from hybrid_models.models import build_model
 from vessel_description import Vessel
 
@@ -52,8 +53,9 @@ def save_checkpoint(path: str | Path, model: nn.Module, config: dict,
                     optimizer: torch.optim.Optimizer | None = None) -> Path:
     """Write atomically (temporary file, then rename), so a kill never leaves half a file."""
     path = Path(path)
-    if novelty.stored(model) is not None:
-        config = {**config, 'novelty': novelty.stored(model)}
+    calibrations = novelty.stored(model)
+    if calibrations is not None:
+        config = {**config, 'novelty': calibrations}
     # Stored from the CPU, so a checkpoint written on a GPU loads anywhere.
     tensors = {f'model/{k}': v.detach().cpu().contiguous().clone()
                for k, v in model.state_dict().items()}
@@ -132,9 +134,19 @@ def load_model(path: str | Path) -> tuple[nn.Module, dict]:
     return model, ckpt.config
 
 
+def load_hybrid(path: str | Path, having: str) -> tuple[nn.Module, dict]:
+    """Load a hybrid or an ensemble of them; refuse another model, naming what it lacks."""
+    model, config = load_model(path)
+    if not is_hybrid(model):
+        raise CheckpointError(f'{path}: only hybrid models (and ensembles of them) have '
+                              f'{having} (this is '
+                              f'{getattr(model, "kind", type(model).__name__)!r})')
+    return model, config
+
+
 def _restore_novelty(model: nn.Module, stored: list | None, path) -> None:
     """Give each member its calibration (``hybrid_models.novelty``) from the config."""
-    members = list(getattr(model, 'members', [model]))
+    members = novelty.hybrids_of(model)
     for m, entry in zip(members, stored or [None] * len(members), strict=False):
         if entry is not None:
             m.novelty = novelty.Novelty.from_dict(entry)

@@ -295,8 +295,9 @@ class Forecaster:
                    platform: str = 'cpu') -> Forecaster:
         """Serve a trained torch ``HybridModel`` (its weights are copied to numpy)."""
         state = {k: v.detach().cpu().numpy() for k, v in model.state_dict().items()}
-        if novelty.stored(model) is not None:
-            config = {**(config or {}), 'novelty': novelty.stored(model)}
+        calibrations = novelty.stored(model)
+        if calibrations is not None:
+            config = {**(config or {}), 'novelty': calibrations}
         return cls._build(model.spec, model.describe(), state, relative_threshold, dtype,
                           model_id, config, platform)
 

@@ -63,10 +63,15 @@ class Novelty:
                 'radius': cast(np.asarray(self.radius))}
 
 
+def hybrids_of(model) -> list:
+    """Return the hybrids a model serves, each with its own calibration: its members, or it."""
+    return list(getattr(model, 'members', [model]))
+
+
 def stored(model) -> list | None:
     """Return a model's calibrations as its checkpoint keeps them: one per member, or None."""
     entries = [m.novelty.to_dict() if getattr(m, 'novelty', None) is not None else None
-               for m in getattr(model, 'members', [model])]
+               for m in hybrids_of(model)]
     return entries if any(e is not None for e in entries) else None
 
 

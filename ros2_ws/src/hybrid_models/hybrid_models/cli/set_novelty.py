@@ -18,20 +18,16 @@ import argparse
 from pathlib import Path
 import sys
 
-from hybrid_models.checkpoint import CheckpointError, load_model, save_checkpoint
-from hybrid_models.ensemble import is_hybrid
+from hybrid_models import novelty
+from hybrid_models.checkpoint import CheckpointError, load_hybrid, save_checkpoint
 
 SETTINGS = {'on': True, 'off': False}
 
 
 def set_novelty(path: Path, fade: bool, out: Path) -> list[float]:
     """Rewrite ``path`` to ``out`` served with the fade or without; return the radii."""
-    model, config = load_model(path)
-    if not is_hybrid(model):
-        raise CheckpointError(f'{path}: only hybrid models (and ensembles of them) have a '
-                              f'bound to fade (this is '
-                              f'{getattr(model, "kind", type(model).__name__)!r})')
-    members = list(getattr(model, 'members', [model]))
+    model, config = load_hybrid(path, 'a bound to fade')
+    members = novelty.hybrids_of(model)
     if any(m.novelty is None for m in members):
         raise CheckpointError(f'{path}: the checkpoint holds no novelty calibration (it was '
                               f'trained before hybrids were calibrated): train it again')

@@ -17,17 +17,13 @@ import argparse
 from pathlib import Path
 import sys
 
-from hybrid_models.checkpoint import CheckpointError, load_model, save_checkpoint
+from hybrid_models.checkpoint import CheckpointError, load_hybrid, save_checkpoint
 from hybrid_models.cli.arguments import threshold
-from hybrid_models.ensemble import is_hybrid
 
 
 def set_threshold(path: Path, relative_threshold: float | None, out: Path) -> dict:
     """Rewrite ``path`` to ``out`` with the threshold; return its bound section."""
-    model, config = load_model(path)
-    if not is_hybrid(model):
-        raise CheckpointError(f'{path}: only hybrid models (and ensembles of them) have a '
-                              f'bound (this is {getattr(model, "kind", type(model).__name__)!r})')
+    model, config = load_hybrid(path, 'a bound')
     model.set_threshold(relative_threshold)
     bound = {**config.get('bound', {}), 'relative_threshold': relative_threshold,
              'half_width': model.bound.tolist()}

@@ -400,11 +400,12 @@ def _prepare_physics(model: HybridModel, cfg, stores: dict, cache: Path, write: 
     info['bound']['range_from'] = ('all one-step outputs' if outputs.complete else
                                    f'a uniform sample of {outputs.capacity} of '
                                    f'{outputs.seen} one-step outputs')
-    model.novelty = calibrate_novelty(model, fitted, stores)
+    model.novelty = calibrate_novelty(model, fitted, pairs, stores['val'].pairs.rows())
     return z_phy['train'], z_phy['val'], info
 
 
-def calibrate_novelty(model: HybridModel, fitted, stores: dict) -> novelty.Novelty:
+def calibrate_novelty(model: HybridModel, fitted, train_pairs: np.ndarray,
+                      val_pairs: np.ndarray) -> novelty.Novelty:
     """Return where the correction is trained (``hybrid_models.novelty``), from the pairs."""
     ns, nc = model.spec.n_state, model.spec.n_control
     norm = {name: getattr(model, name).double().numpy()
@@ -414,10 +415,9 @@ def calibrate_novelty(model: HybridModel, fitted, stores: dict) -> novelty.Novel
         z, c = rows[:, :ns].astype(np.float64), rows[:, ns:ns + nc].astype(np.float64)
         return correction_input(norm, fitted.predict(z, c), c)
 
-    pairs = {split: stores[split].pairs for split in ('train', 'val')}
-    return novelty.calibrate(inputs(pairs['train'].rows()), inputs(pairs['val'].rows()),
-                     f"{len(pairs['train'].rows())} training and {len(pairs['val'].rows())} "
-                     f"validation one-step inputs")
+    return novelty.calibrate(inputs(train_pairs), inputs(val_pairs),
+                             f'{len(train_pairs)} training and {len(val_pairs)} validation '
+                             f'one-step inputs')
 
 
 def _envelope_remedy(physical) -> str | None:
