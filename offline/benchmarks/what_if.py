@@ -12,8 +12,10 @@ make the default model's forecasts diverge for four plans in ten, which the pred
 withholds) (the request a sampling planner sends: 1,000 plans x 100 steps). Timed,
 median of ``repeats``: the whole answer (plan checks, the forecast with the wind held
 over the earth, the published frames and bands, the Forecast messages) and its stages,
-with the engine's single pass over the batch as the compute alone. What DDS adds on top
-(the request's and the answer's bytes) is the soak's to measure.
+with the engine's single pass over the batch as the compute alone; and the request's
+conversion to Python and the answer's writing and serialization, as the door does them
+(in C from the batch's arrays) and as they were done before (Python messages converted).
+What DDS adds on top is the soak's to measure.
 """
 
 from __future__ import annotations
@@ -95,12 +97,16 @@ def candidate_plans(vessel, plans: int, steps: int, seed: int = 0) -> list:
 
 def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None) -> dict:
     """Return the what-if's figures for ``plans`` plans of ``steps`` steps (ms, medians)."""
+    from rclpy.serialization import deserialize_message, serialize_message
+    from what_if_c.door import response_cdr
+
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.core import PredictorCore
-    from hybrid_predictor.forecast_messages import followed, forecast_messages
+    from hybrid_predictor.forecast_messages import followed, forecast_batch
     from hybrid_predictor.forecasting import forecast, plan_futures
     from hybrid_predictor.plans import check_plan_messages
     from hybrid_predictor.re_forecast import predictor_defaults
+    from hybrid_predictor_interfaces.srv import Predict
     from vessel_datasets.topic_map import topic_map_for
     from vessel_datasets.topic_messages import channel_values
 
@@ -124,23 +130,36 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
         result = core.assemble(now)
     matrices = check_plan_messages(requests, steps, core.limits)
     futures = plan_futures(vessel, matrices, result.controls[-1])
-    batch = np.concatenate([f.controls for f in futures])
-    ok, why, _, withheld = core.what_if(requests, 0.0, now)
+    batch_controls = np.concatenate([f.controls for f in futures])
+    ok, why, batch, withheld = core.what_if(requests, 0.0, now)
     if not ok:
         raise RuntimeError(f'what-if refused: {why}')
     _, _, arrays = forecast(engine, vessel, result, futures)
+    request = Predict.Request(plans=requests)
+    request_cdr = serialize_message(request)
+    messages = batch.messages()
+    answer = Predict.Response(success=True, message=why, forecasts=messages, withheld=withheld)
     return {
         'plans': plans, 'steps': steps, 'model': engine.model_id,
         'plans_withheld': sum(bool(w) for w in withheld),
+        'request_kb': round(len(request_cdr) / 1e3, 1),
+        'answer_kb': round(len(response_cdr(why, withheld, batch)) / 1e3, 1),
         'answer_ms': _median_ms(lambda: core.what_if(requests, 0.0, now), repeats),
         'stages_ms': {
+            'request read into Python': _median_ms(
+                lambda: deserialize_message(request_cdr, Predict.Request), repeats),
             'plan checks': _median_ms(lambda: check_plan_messages(requests, steps,
                                                                   core.limits), repeats),
             'forecast, wind held over the earth, frames and bands':
                 _median_ms(lambda: forecast(engine, vessel, result, futures), repeats),
-            'Forecast messages': _median_ms(lambda: forecast_messages(
+            'Forecasts as arrays': _median_ms(lambda: forecast_batch(
                 core.served, result.t_end, arrays, [followed(r) for r in requests]), repeats),
+            'answer written in C and serialized (what the door sends)': _median_ms(
+                lambda: response_cdr(why, withheld, batch), repeats),
+            'before: Forecast messages in Python': _median_ms(batch.messages, repeats),
+            'before: their answer converted and serialized': _median_ms(
+                lambda: serialize_message(answer), repeats),
         },
         'engine_one_pass_ms': _median_ms(
-            lambda: engine.forecast(result.states, result.controls, batch), repeats),
+            lambda: engine.forecast(result.states, result.controls, batch_controls), repeats),
     }

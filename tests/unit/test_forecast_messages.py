@@ -3,11 +3,20 @@
 from array import array
 
 import numpy as np
+import pytest
 from rclpy.serialization import deserialize_message, serialize_message
+from what_if_c.door import response_cdr
 
-from hybrid_predictor.forecast_messages import Assumed, Served, forecast_messages, no_steps
+from hybrid_predictor.forecast_messages import (
+    Assumed,
+    Served,
+    forecast_batch,
+    forecast_messages,
+    no_steps,
+)
 from hybrid_predictor.forecasting import Published
 from hybrid_predictor_interfaces.msg import Forecast
+from hybrid_predictor_interfaces.srv import Predict
 from vessel_description import load_vessel
 from vessel_ros_bridge import messages
 
@@ -68,3 +77,49 @@ def test_each_message_carries_its_own_forecast_and_the_batch_alike():
     assert out[0].horizon == 0 and len(out[0].hybrid) == len(out[0].bound_available) == 0
     assert out[1].horizon == K and list(out[1].hybrid) == arrays.hybrid[1].ravel().tolist()
     assert out[2].plan_id == '' and out[1].plan_id == 'plan-1'
+
+
+def _served_and_assumed(rng, vessel):
+    served = Served(vessel, 'odom', 'base_link', 'model@1', rng.random(vessel.n_state), 0.2,
+                    True, LEVELS, 'calibrated on 3 runs')
+    assumed = [Assumed(Forecast.CONTROLS_PLAN, f'plan-{i}', messages.stamp_from_seconds(i + 0.5))
+               for i in range(B - 1)] + [Assumed()]
+    return served, assumed
+
+
+def test_the_door_writes_the_batch_in_c_as_the_messages_say():
+    vessel = load_vessel('patrol_boat')
+    rng = np.random.default_rng(1)
+    served, assumed = _served_and_assumed(rng, vessel)
+    batch = forecast_batch(served, 7.5, _batch(rng, vessel), assumed, stride=2,
+                           emptied=[False, True, False])
+    out = batch.messages()
+    assert out[1].horizon == 0 and len(out[1].band_position_radius) == 0 == len(out[1].x)
+    assert out[1].plan_id == 'plan-1' and out[0].plan_stamp.nanosec == 500_000_000
+    withheld = ['', 'non-finite values', '']
+    answer = Predict.Response(success=True, message='2 forecasts', forecasts=out,
+                              withheld=withheld)
+    # Every field of every message, the emptied one's and the held one's too.
+    written = deserialize_message(response_cdr('2 forecasts', withheld, batch),
+                                  Predict.Response)
+    assert written == answer
+    assert list(written.forecasts[2].hybrid) == batch.rows['hybrid'][2].tolist()
+
+
+@pytest.mark.parametrize('change, says', [
+    (dict(rows={'hybrid': np.zeros((B + 1, 4))}), "hybrid must be 2-D 'd' with 3 rows"),
+    (dict(rows={'speed': np.zeros((B, 4))}), "'speed' is no step row of a Forecast"),
+    (dict(rows={'x': np.zeros((B, 4), np.float32)}), "x must be 2-D 'd'"),
+    (dict(plan_ids=['a']), 'plan_ids must be a list of 3 str'),
+    (dict(template=Predict.Response()), 'template must be a'),
+])
+def test_a_malformed_batch_is_refused_in_one_line(change, says):
+    import dataclasses
+
+    vessel = load_vessel('patrol_boat')
+    rng = np.random.default_rng(2)
+    served, assumed = _served_and_assumed(rng, vessel)
+    batch = dataclasses.replace(forecast_batch(served, 7.5, _batch(rng, vessel), assumed),
+                                **change)
+    with pytest.raises((TypeError, ValueError), match=says):
+        response_cdr('', [''] * B, batch)

@@ -5,6 +5,8 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from rclpy.serialization import deserialize_message
+from what_if_c.door import response_cdr
 
 from hybrid_models.engine import Forecaster
 from hybrid_predictor.core import PredictorCore
@@ -14,6 +16,7 @@ from hybrid_predictor.node import default_model_path
 from hybrid_predictor.plan_message import control_plan
 from hybrid_predictor.re_forecast import ReForecast, predictor_defaults
 from hybrid_predictor_interfaces.msg import Forecast
+from hybrid_predictor_interfaces.srv import Predict
 from vessel_datasets.topic_map import topic_map_for
 from vessel_datasets.topic_messages import MessageWriter, channel_reader, channel_values
 from vessel_description import load_vessel
@@ -133,13 +136,14 @@ def test_what_if_refuses_in_one_line_and_answers_each_plan(run):
     core = fresh_core(run, max_plans=3)
     plan = control_plan(run.vessel, run.plan[:run.vessel.horizon])
     ok, why, out, _ = core.what_if([plan] * 4, 0.0, START)
-    assert not ok and why == 'send 1 to 3 plans, got 4' and out == []
+    assert not ok and why == 'send 1 to 3 plans, got 4' and out is None
     ok, why, _, _ = core.what_if([plan], 0.0, START)
     assert not ok and why.startswith('no forecast: ')
     feed(core, run, range(SECONDS - 1))
     now = START + SECONDS - 1
-    ok, why, out, withheld = core.what_if([plan, plan], 0.0, now)
+    ok, why, batch, withheld = core.what_if([plan, plan], 0.0, now)
     assert ok and withheld == ['', ''], why
+    out = batch.messages()
     assert [f.hybrid for f in out[:1]] == [out[1].hybrid]
     assert out[0].controls_assumed == Forecast.CONTROLS_PLAN
 
@@ -157,7 +161,8 @@ def test_a_plan_the_model_cannot_forecast_is_withheld_alone(run, monkeypatch):
     plans = [control_plan(run.vessel, np.column_stack([
         np.concatenate([rng.uniform(a.low, a.high, 100), np.full(rest, (a.low + a.high) / 2)])
         for a in actuators])) for _ in range(8)]
-    ok, why, out, withheld = core.what_if(plans, 0.0, now)
+    ok, why, batch, withheld = core.what_if(plans, 0.0, now)
+    out = batch.messages()
     assert ok and len(out) == len(withheld) == 8, why
     bad = [i for i, w in enumerate(withheld) if w]
     assert 0 < len(bad) < 8 and f'({len(bad)} withheld; plan {bad[0]}: ' in why
@@ -165,10 +170,13 @@ def test_a_plan_the_model_cannot_forecast_is_withheld_alone(run, monkeypatch):
         steps = 0 if w else run.vessel.horizon
         assert msg.horizon == steps and len(msg.hybrid) == steps * len(msg.state_names)
         assert np.isfinite(msg.hybrid).all() and msg.controls_assumed == Forecast.CONTROLS_PLAN
+    # The door writes this answer in C from the batch: the answer of these messages.
+    answer = Predict.Response(success=True, message=why, forecasts=out, withheld=withheld)
+    assert deserialize_message(response_cdr(why, withheld, batch), Predict.Response) == answer
     monkeypatch.setattr(core, 'withheld',
                         lambda hybrid, arrays: ['non-finite values'] * len(hybrid))
     ok, why, out, withheld = core.what_if(plans[:2], 0.0, now)
-    assert not ok and out == withheld == []
+    assert not ok and out is None and withheld == []
     assert why == 'every forecast withheld; plan 0: forecast withheld: non-finite values'
 
 

@@ -35,7 +35,14 @@ from vessel_datasets.topic_map import TopicMap
 from vessel_physics import frames
 from vessel_ros_bridge.messages import seconds_from_stamp
 
-from .forecast_messages import Assumed, Served, followed, forecast_messages, no_steps
+from .forecast_messages import (
+    Assumed,
+    ForecastBatch,
+    Served,
+    followed,
+    forecast_batch,
+    forecast_messages,
+)
 from .forecasting import forecast, future_controls, plan_futures, published
 from .health import OK, WARN, Health
 from .hindsight import Hindsight, Remade, applied_future
@@ -410,43 +417,43 @@ class PredictorCore:
 
     # ------------------------------------------------------------------ what if
     def what_if(self, plans, answer_period: float, now: float
-                ) -> tuple[bool, str, list, list[str]]:
+                ) -> tuple[bool, str, ForecastBatch | None, list[str]]:
         """
-        Return (success, message, Forecast messages, withheld) for a Predict request.
+        Return (success, message, forecasts, withheld) for a Predict request.
 
-        ``withheld`` gives per plan why its forecast was withheld ('' if served); such a
-        plan's Forecast carries no steps, and the others are answered all the same.
+        ``forecasts`` is the answer's Forecasts as a batch of arrays (None on failure;
+        ``messages()`` gives the messages). ``withheld`` gives per plan why its forecast
+        was withheld ('' if served); such a plan's Forecast carries no steps, and the
+        others are answered all the same.
         """
         if not 1 <= len(plans) <= self.p['max_plans']:
-            return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', [], []
+            return False, f'send 1 to {self.p["max_plans"]} plans, got {len(plans)}', None, []
         try:   # every plan, as a whole, before any window or model work
             stride = answer_stride(answer_period, self.spec.dt, self.horizon)
             matrices = check_plan_messages(plans, self.horizon, self.limits)   # (B, H, m)
         except PlanError as exc:
-            return False, str(exc), [], []
+            return False, str(exc), None, []
         with self.lock:
             result = self.assemble(now)
         if not result.ready:
-            return False, f'no forecast: {result.reason}', [], []
+            return False, f'no forecast: {result.reason}', None, []
         futures = plan_futures(self.spec, matrices, result.controls[-1])
         with self.batch_lock:
             hybrid, _, arrays = forecast(self.engine, self.spec, result, futures, stride)
         # Every step's states are checked; a non-finite track between the answer's steps
         # would carry on to its last step, which every answer holds.
         withheld = [why or '' for why in self.withheld(hybrid, arrays)]
-        out = forecast_messages(self.served, result.t_end, arrays,
-                                [followed(plan) for plan in plans], stride)
-        for msg, why in zip(out, withheld, strict=True):
-            if why:
-                no_steps(msg)
         count = sum(bool(why) for why in withheld)
         first = next((f'plan {i}: forecast withheld: {why}'
                       for i, why in enumerate(withheld) if why), '')
         if count == len(plans):
-            return False, f'every forecast withheld; {first}', [], []
+            return False, f'every forecast withheld; {first}', None, []
+        batch = forecast_batch(self.served, result.t_end, arrays,
+                               [followed(plan) for plan in plans], stride,
+                               emptied=[bool(why) for why in withheld])
         note = f' ({count} withheld; {first})' if count else ''
         return True, f'{len(plans) - count} forecasts from the window ending at ' \
-                     f'{result.t_end:.3f} s{note}', out, withheld
+                     f'{result.t_end:.3f} s{note}', batch, withheld
 
     # ------------------------------------------------------------------ health
     def report(self, now: float, wall: float, clock_publishers: list[str] | None,

@@ -13,6 +13,7 @@ import copy
 from dataclasses import dataclass
 import math
 
+from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path as PathMsg
 import numpy as np
@@ -70,28 +71,57 @@ def doubles(values) -> array:
     return out
 
 
-class _Rows:
-    """A batch array's rows (one per forecast) as float64 bytes, each read at one copy."""
+@dataclass(frozen=True)
+class ForecastBatch:
+    """
+    A batch's Forecast messages as arrays: what they share, and each one's own.
 
-    def __init__(self, values):
-        batch = np.ascontiguousarray(values, dtype=np.float64)
-        self._bytes = memoryview(batch).cast('B')
-        self._size = batch[0].nbytes if len(batch) else 0
+    ``messages()`` builds them in Python; the what-if door writes the same messages
+    straight from these arrays in C (``what_if_c.door``), which is where a thousand-plan
+    answer spent a third of its time. Read-only: both share ``template``.
+    """
 
-    def __getitem__(self, i: int) -> array:
-        out = array('d')
-        out.frombytes(self._bytes[i * self._size:(i + 1) * self._size])
+    template: Forecast               # every field the messages share; no step rows
+    rows: dict                       # STEP_ROWS name -> (B, k) float64, C-contiguous
+    plan_ids: list                   # (B,) str
+    controls_assumed: list           # (B,) str
+    plan_stamps: np.ndarray          # (B, 2) int64 sec, nanosec; 0, 0 when held
+    emptied: np.ndarray              # (B,) bool: withheld, sent without steps (no_steps)
+
+    def __len__(self) -> int:
+        """Return the number of forecasts."""
+        return len(self.emptied)
+
+    def messages(self) -> list[Forecast]:
+        """Return the Forecast messages, each a shallow copy of the template (never edit)."""
+        # A shallow copy of one filled message is a third of a message built field by
+        # field; each row is read from the batch's bytes at one copy.
+        views = {name: memoryview(rows).cast('B') for name, rows in self.rows.items()}
+        out = []
+        for i in range(len(self)):
+            msg = copy.copy(self.template)
+            msg.controls_assumed, msg.plan_id = self.controls_assumed[i], self.plan_ids[i]
+            if self.plan_stamps[i].any():
+                msg.plan_stamp = Time(sec=int(self.plan_stamps[i, 0]),
+                                      nanosec=int(self.plan_stamps[i, 1]))
+            if self.emptied[i]:
+                no_steps(msg)
+            else:
+                for name, view in views.items():
+                    row = array('d')
+                    size = len(view) // len(self)
+                    row.frombytes(view[i * size:(i + 1) * size])
+                    setattr(msg, name, row)
+            out.append(msg)
         return out
 
 
-def forecast_messages(served: Served, t_end: float, forecasts: Published,
-                      assumed: list[Assumed], stride: int = 1) -> list[Forecast]:
+def forecast_batch(served: Served, t_end: float, forecasts: Published, assumed: list[Assumed],
+                   stride: int = 1, emptied=None) -> ForecastBatch:
     """
-    Return one Forecast per forecast of the batch, from the window ending at ``t_end`` (s).
+    Return the batch's Forecasts from the window ending at ``t_end`` (s), as arrays.
 
-    What every message of the batch says alike (header, names, units, bound, band levels
-    and radii) is made once and shared by the messages: replace a message's field (as
-    ``no_steps`` does), never change one in place.
+    ``emptied``: (B,) bool, the forecasts withheld, sent without steps (none by default).
     """
     spec = served.spec
     header = Header(stamp=messages.stamp_from_seconds(t_end), frame_id=served.world_frame)
@@ -106,20 +136,23 @@ def forecast_messages(served: Served, t_end: float, forecasts: Published,
     if forecasts.band_lower is not None:
         alike.update(band_levels=list(served.band_levels),
                      band_position_radius=doubles(forecasts.band_radius))
-    rows = {name: _Rows(getattr(forecasts, name))
+    count = len(forecasts.hybrid)
+    rows = {name: np.ascontiguousarray(getattr(forecasts, name), dtype=np.float64
+                                       ).reshape(count, -1)
             for name in STEP_ROWS if getattr(forecasts, name) is not None}
-    # A shallow copy of one filled message is a third of a message built field by field.
-    template = Forecast(**alike)
-    out = []
-    for i in range(len(forecasts.hybrid)):
-        msg = copy.copy(template)
-        for name, row in rows.items():
-            setattr(msg, name, row[i])
-        msg.controls_assumed, msg.plan_id = assumed[i].controls, assumed[i].plan_id
-        if assumed[i].plan_stamp is not None:
-            msg.plan_stamp = assumed[i].plan_stamp
-        out.append(msg)
-    return out
+    stamps = np.zeros((count, 2), dtype=np.int64)
+    for i, a in enumerate(assumed):
+        if a.plan_stamp is not None:
+            stamps[i] = a.plan_stamp.sec, a.plan_stamp.nanosec
+    return ForecastBatch(
+        Forecast(**alike), rows, [a.plan_id for a in assumed], [a.controls for a in assumed],
+        stamps, np.zeros(count, dtype=bool) if emptied is None else np.asarray(emptied, bool))
+
+
+def forecast_messages(served: Served, t_end: float, forecasts: Published,
+                      assumed: list[Assumed], stride: int = 1) -> list[Forecast]:
+    """Return one Forecast per forecast of the batch (``forecast_batch(...).messages()``)."""
+    return forecast_batch(served, t_end, forecasts, assumed, stride).messages()
 
 
 def no_steps(msg: Forecast) -> None:

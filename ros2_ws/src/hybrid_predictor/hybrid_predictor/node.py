@@ -365,21 +365,22 @@ class PredictorNode(Node):
             self.get_logger().error(f'~/predict stopped: {self.door.failure}')
 
     def _answer(self, token: int, request) -> None:
-        response = Predict.Response()
         try:
-            (response.success, response.message, response.forecasts,
-             response.withheld) = self.core.what_if(request.plans, request.answer_period,
-                                                    self._now())
+            success, message, batch, withheld = self.core.what_if(
+                request.plans, request.answer_period, self._now())
         except Exception as exc:  # noqa: BLE001 - a request must never stop the node
             self.get_logger().error(f'~/predict failed: {exc!r}')
-            response.success, response.message = False, f'internal error: {exc}'
-        if not response.success:
-            response.forecasts, response.withheld = [], []
-            self.core.count('service_failed')
+            success, message = False, f'internal error: {exc}'
         try:
-            self.door.answer(token, response)
+            if success:   # the Forecasts written in C from the batch's arrays
+                self.door.answer_batch(token, message, withheld, batch)
+            else:
+                self.core.count('service_failed')
+                self.door.answer(token, Predict.Response(success=False, message=message))
         except RuntimeError as exc:   # the door closed meanwhile: the node is stopping
             self.get_logger().info(f'~/predict answer not sent: {exc}')
+        except Exception as exc:  # noqa: BLE001 - the door told the client; the log says why
+            self.get_logger().error(f'~/predict answer could not be written: {exc!r}')
 
     # ------------------------------------------------------------------ health
     def _publish_diagnostics(self) -> None:

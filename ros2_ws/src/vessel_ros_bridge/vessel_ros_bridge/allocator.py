@@ -15,6 +15,17 @@ reused warm). Mapping every large block on its own (a fixed mmap threshold) also
 the memory, but took 182-203 ms of CPU per 64-plan request against 163-182 ms. A
 user's own setting (environment) wins; on another C library nothing is done.
 
+Blocks of up to ``KEPT_BLOCK`` (32 MiB) are also taken from the arenas and stay there
+when freed, up to ``KEPT_FREE`` (256 MiB) at the top of a heap. glibc maps a large block
+on its own (above 128 kB, a threshold it raises as such blocks are freed) and gives a
+heap's freed top back above 128 kB: each thousand-plan what-if answer (19 MB of
+Forecasts, a copy of them serialized, the batch's arrays) was then written into fresh
+pages, each a page fault the kernel zeroes. Measured in the predictor's code
+(``offline/bench.py forecast``'s what-if, the snuboat's model, 1,000 plans x 100 steps,
+2026-12-03): the answer written and serialized 16.9 -> 7.6 ms, the whole answer 55.5 ->
+46.8 ms. The price is memory: a node keeps the high-water mark of its large answers
+resident (at most ``KEPT_FREE`` free at a heap's top) instead of giving it back.
+
 A thread keeps the arena it first allocated from, and importing numpy, rclpy or the
 predictor's model starts threads (four on ``import hybrid_predictor.node``, with three
 arenas): a node's console entry therefore limits them before it imports anything else
@@ -30,7 +41,11 @@ import importlib
 import os
 
 ARENAS = 2                      # at most, for the whole process (measured above)
-M_ARENA_MAX = -8                # mallopt's parameter number, <malloc.h>
+KEPT_BLOCK = 32 << 20           # B: blocks up to this are the arenas', not mapped alone
+KEPT_FREE = 256 << 20           # B: freed memory a heap keeps at its top
+M_ARENA_MAX = -8                # mallopt's parameter numbers, <malloc.h>
+M_MMAP_THRESHOLD = -3
+M_TRIM_THRESHOLD = -1
 _done: list[str] = []           # the note of the first call: the setting holds from then
 
 
@@ -47,15 +62,26 @@ def share_malloc_arenas(environ: Mapping[str, str] = os.environ) -> str:
 
 
 def _limit_arenas(environ: Mapping[str, str]) -> str:
-    own = user_setting(environ)
-    if own:
-        return f'malloc: arenas set by the user ({own}), left as set'
     libc = ctypes.CDLL(None)
     if not hasattr(libc, 'gnu_get_libc_version'):
         return 'malloc: not glibc, its own arenas'
-    if libc.mallopt(M_ARENA_MAX, ARENAS) != 1:
-        return 'malloc: glibc refused a limit on its arenas; one per thread as it decides'
-    return f'malloc: {ARENAS} arenas shared by all threads, so freed memory is reused'
+    own = user_setting(environ)
+    if own:
+        arenas = f'arenas set by the user ({own}), left as set'
+    elif libc.mallopt(M_ARENA_MAX, ARENAS) != 1:
+        arenas = 'glibc refused a limit on its arenas; one per thread as it decides'
+    else:
+        arenas = f'{ARENAS} arenas shared by all threads, so freed memory is reused'
+    own = user_thresholds(environ)
+    if own:
+        kept = f'large blocks as the user set them ({own})'
+    elif (libc.mallopt(M_MMAP_THRESHOLD, KEPT_BLOCK) != 1
+          or libc.mallopt(M_TRIM_THRESHOLD, KEPT_FREE) != 1):
+        kept = 'glibc refused to keep large blocks; each mapped and given back'
+    else:
+        kept = (f'blocks up to {KEPT_BLOCK >> 20} MiB kept in them when freed (up to '
+                f'{KEPT_FREE >> 20} MiB a heap), so large answers reuse warm pages')
+    return f'malloc: {arenas}; {kept}'
 
 
 def user_setting(environ: Mapping[str, str]) -> str | None:
@@ -65,6 +91,16 @@ def user_setting(environ: Mapping[str, str]) -> str | None:
     if 'malloc.arena_max' in environ.get('GLIBC_TUNABLES', ''):
         return 'GLIBC_TUNABLES'
     return None
+
+
+def user_thresholds(environ: Mapping[str, str]) -> str | None:
+    """Return the environment variables by which the user set large blocks, or None."""
+    own = [name for name in ('MALLOC_MMAP_THRESHOLD_', 'MALLOC_TRIM_THRESHOLD_')
+           if environ.get(name)]
+    tunables = environ.get('GLIBC_TUNABLES', '')
+    if 'malloc.mmap_threshold' in tunables or 'malloc.trim_threshold' in tunables:
+        own.append('GLIBC_TUNABLES')
+    return ', '.join(own) or None
 
 
 def start_node(module: str, args=None) -> int:

@@ -29,11 +29,15 @@
 #include <time.h>
 
 #include "rcl/rcl.h"
+#include "rcutils/allocator.h"
 #include "rcutils/error_handling.h"
+#include "rmw/rmw.h"
+#include "rmw/serialized_message.h"
 #include "rosidl_runtime_c/string_functions.h"
 
 #include "hybrid_predictor_interfaces/srv/predict.h"
 
+#include "forecast_batch.h"
 #include "message_class.h"
 #include "rcl_check.h"
 
@@ -536,15 +540,56 @@ static int token_slot(DoorObject * self, unsigned token)
   return slot;
 }
 
-static PyObject * Door_answer(DoorObject * self, PyObject * args)
+/* Fill MESSAGE (created) with WHAT's answer; false with a Python error set if it cannot. */
+typedef bool fill_t(DoorObject * self, PyObject * what,
+  hybrid_predictor_interfaces__srv__Predict_Response * message);
+
+static bool fill_from_response(DoorObject * self, PyObject * response,
+  hybrid_predictor_interfaces__srv__Predict_Response * message)
 {
-  unsigned token = 0;
-  PyObject * response = NULL;
-  if (!PyArg_ParseTuple(args, "IO", &token, &response)) {return NULL;}
-  if (!PyObject_TypeCheck(response, (PyTypeObject *)self->response_class)) {
-    return PyErr_Format(PyExc_TypeError, "answer takes a %s",
-      ((PyTypeObject *)self->response_class)->tp_name);
+  return self->response_from_py(response, message);
+}
+
+/* A successful answer: WHAT is (message, withheld, batch), batch a ForecastBatch. */
+static bool fill_success(PyObject * what,
+  hybrid_predictor_interfaces__srv__Predict_Response * message)
+{
+  const char * text = NULL;
+  PyObject * withheld = NULL, * batch = NULL;
+  if (!PyArg_ParseTuple(what, "sO!O", &text, &PyList_Type, &withheld, &batch)) {return false;}
+  Py_ssize_t count = PyList_GET_SIZE(withheld);
+  message->success = true;
+  if (!rosidl_runtime_c__String__assign(&message->message, text) ||
+    !rosidl_runtime_c__String__Sequence__init(&message->withheld, (size_t)count))
+  {
+    PyErr_NoMemory();
+    return false;
   }
+  for (Py_ssize_t i = 0; i < count; ++i) {
+    PyObject * item = PyList_GET_ITEM(withheld, i);
+    const char * why = PyUnicode_Check(item) ? PyUnicode_AsUTF8(item) : NULL;
+    if (!why) {
+      if (!PyErr_Occurred()) {PyErr_SetString(PyExc_TypeError, "withheld must hold str");}
+      return false;
+    }
+    if (!rosidl_runtime_c__String__assign(&message->withheld.data[i], why)) {
+      PyErr_NoMemory();
+      return false;
+    }
+  }
+  return fill_forecast_batch(batch, &message->forecasts);
+}
+
+static bool fill_from_batch(DoorObject * self, PyObject * what,
+  hybrid_predictor_interfaces__srv__Predict_Response * message)
+{
+  (void)self;
+  return fill_success(what, message);
+}
+
+/* Send the answer FILL makes of WHAT to the request of TOKEN, and free its place. */
+static PyObject * deliver(DoorObject * self, unsigned token, fill_t * fill, PyObject * what)
+{
   pthread_mutex_lock(&self->lock);
   bool open = begin_send(self);
   int slot = open ? token_slot(self, token) : -1;
@@ -558,14 +603,16 @@ static PyObject * Door_answer(DoorObject * self, PyObject * args)
   }
   hybrid_predictor_interfaces__srv__Predict_Response * message =
     hybrid_predictor_interfaces__srv__Predict_Response__create();
-  bool converted = message && self->response_from_py(response, message);
+  bool converted = message && fill(self, what, message);
   rcl_ret_t ret = RCL_RET_ERROR;
   if (converted) {
     Py_BEGIN_ALLOW_THREADS
     ret = rcl_send_response(&self->service, &id, message);
+    hybrid_predictor_interfaces__srv__Predict_Response__destroy(message);
     Py_END_ALLOW_THREADS
+  } else {
+    hybrid_predictor_interfaces__srv__Predict_Response__destroy(message);
   }
-  hybrid_predictor_interfaces__srv__Predict_Response__destroy(message);
   end_send(self);
   if (!converted) {   /* the client is answered all the same */
     PyObject * type, * value, * traceback;
@@ -582,6 +629,35 @@ static PyObject * Door_answer(DoorObject * self, PyObject * args)
   }
   if (!check_rcl(ret, "sending the answer")) {return NULL;}
   Py_RETURN_NONE;
+}
+
+static PyObject * Door_answer(DoorObject * self, PyObject * args)
+{
+  unsigned token = 0;
+  PyObject * response = NULL;
+  if (!PyArg_ParseTuple(args, "IO", &token, &response)) {return NULL;}
+  if (!PyObject_TypeCheck(response, (PyTypeObject *)self->response_class)) {
+    return PyErr_Format(PyExc_TypeError, "answer takes a %s",
+      ((PyTypeObject *)self->response_class)->tp_name);
+  }
+  return deliver(self, token, fill_from_response, response);
+}
+
+static PyObject * Door_answer_batch(DoorObject * self, PyObject * args)
+{
+  unsigned token = 0;
+  PyObject * what = PyTuple_GetSlice(args, 1, PyTuple_GET_SIZE(args));
+  if (!what) {return NULL;}
+  PyObject * result = NULL;
+  if (PyTuple_GET_SIZE(args) != 4 || !PyArg_Parse(PyTuple_GET_ITEM(args, 0), "I", &token)) {
+    if (!PyErr_Occurred()) {
+      PyErr_SetString(PyExc_TypeError, "answer_batch(token, message, withheld, batch)");
+    }
+  } else {
+    result = deliver(self, token, fill_from_batch, what);
+  }
+  Py_DECREF(what);
+  return result;
 }
 
 static PyObject * Door_counts(DoorObject * self, PyObject * unused)
@@ -674,6 +750,10 @@ static PyMethodDef DOOR_METHODS[] = {
   {"answer", (PyCFunction)Door_answer, METH_VARARGS,
     "answer(token, response): send the answer to the request take() gave with token, "
     "and free its place."},
+  {"answer_batch", (PyCFunction)Door_answer_batch, METH_VARARGS,
+    "answer_batch(token, message, withheld, batch): as answer, a successful one whose "
+    "Forecasts are written in C from batch, a ForecastBatch (hybrid_predictor."
+    "forecast_messages), with the interpreter lock released for its rows."},
   {"counts", (PyCFunction)Door_counts, METH_NOARGS,
     "counts() -> {'requests': taken, 'refused': answered by the door itself}."},
   {"close", (PyCFunction)Door_close, METH_NOARGS,
@@ -703,10 +783,42 @@ static PyTypeObject DoorType = {
   .tp_getset = DOOR_GETSET,
 };
 
+/* The CDR bytes of the answer answer_batch sends, for the tests' comparison with the
+   answer built in Python. */
+static PyObject * response_cdr(PyObject * module, PyObject * what)
+{
+  (void)module;
+  hybrid_predictor_interfaces__srv__Predict_Response * message =
+    hybrid_predictor_interfaces__srv__Predict_Response__create();
+  if (!message) {return PyErr_NoMemory();}
+  PyObject * bytes = NULL;
+  rmw_serialized_message_t cdr = rmw_get_zero_initialized_serialized_message();
+  if (fill_success(what, message)) {
+    rcutils_allocator_t allocator = rcutils_get_default_allocator();
+    const rosidl_message_type_support_t * type = ROSIDL_GET_MSG_TYPE_SUPPORT(
+      hybrid_predictor_interfaces, srv, Predict_Response);
+    bool ok = check_rcl(rmw_serialized_message_init(&cdr, 0, &allocator), "initializing") &&
+      check_rcl(rmw_serialize(message, type, &cdr), "rmw_serialize");
+    if (ok) {
+      bytes = PyBytes_FromStringAndSize((const char *)cdr.buffer, (Py_ssize_t)cdr.buffer_length);
+    }
+    (void)!rmw_serialized_message_fini(&cdr);
+  }
+  hybrid_predictor_interfaces__srv__Predict_Response__destroy(message);
+  return bytes;
+}
+
+static PyMethodDef MODULE_METHODS[] = {
+  {"response_cdr", (PyCFunction)response_cdr, METH_VARARGS,
+    "response_cdr(message, withheld, batch) -> bytes: the CDR of the successful answer "
+    "Door.answer_batch sends for these."},
+  {NULL, NULL, 0, NULL}
+};
+
 static struct PyModuleDef MODULE = {
   PyModuleDef_HEAD_INIT, "_door",
-  "The predictor's what-if service, its admission and its busy answers in C.", -1, NULL,
-  NULL, NULL, NULL, NULL
+  "The predictor's what-if service, its admission and its busy answers in C.", -1,
+  MODULE_METHODS, NULL, NULL, NULL, NULL
 };
 
 PyMODINIT_FUNC PyInit__door(void)

@@ -7,22 +7,41 @@ on an rclpy node; a thread of the door's own takes every request, admits at most
 and answers the rest "busy" at once with ``retry_after`` (``Hint``: the running
 request's expected end for the first refused client, one service time later for each
 next, at most ``longest`` s). ``Door.close()`` before the node is destroyed.
+
+A successful answer's Forecasts are best sent as ``Door.answer_batch(token, message,
+withheld, batch)``, ``batch`` a ``hybrid_predictor.forecast_messages.ForecastBatch``:
+written in C from its arrays, no Python message per forecast (``response_cdr`` gives
+the bytes it sends, for tests).
 """
 
 from __future__ import annotations
 
+from what_if_c import _door
 from what_if_c._door import MAX_CAPACITY, Door, Hint
 
-__all__ = ['MAX_CAPACITY', 'Door', 'Hint', 'open_door']
+__all__ = ['MAX_CAPACITY', 'Door', 'Hint', 'open_door', 'response_cdr']
 
 
 def open_door(node, name: str, capacity: int, longest: float) -> Door:
     """Return a Door serving ``Predict`` as ``name`` (resolved by rcl) on ``node``."""
     from rclpy.type_support import check_for_type_support
 
+    from hybrid_predictor_interfaces.msg import Forecast
     from hybrid_predictor_interfaces.srv import Predict
 
-    # The door answers busy with Predict's own C message: it serves no other type.
+    # The door answers busy with Predict's own C message: it serves no other type; and
+    # writes Forecasts from a batch's template, converted by Forecast's own support.
     check_for_type_support(Predict)
+    check_for_type_support(Forecast)
     return Door(node.handle.pointer, node.context.handle.pointer, name, Predict, capacity,
                 longest)
+
+
+def response_cdr(message: str, withheld: list[str], batch) -> bytes:
+    """Return the CDR bytes of the successful answer ``Door.answer_batch`` sends for these."""
+    from rclpy.type_support import check_for_type_support
+
+    from hybrid_predictor_interfaces.msg import Forecast
+
+    check_for_type_support(Forecast)
+    return _door.response_cdr(message, withheld, batch)
