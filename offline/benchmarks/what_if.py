@@ -96,7 +96,15 @@ def candidate_plans(vessel, plans: int, steps: int, seed: int = 0) -> list:
 
 
 def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None) -> dict:
-    """Return the what-if's figures for ``plans`` plans of ``steps`` steps (ms, medians)."""
+    """
+    Return the what-if's figures for ``plans`` plans of ``steps`` steps (ms, medians).
+
+    Under the node's malloc settings (``vessel_ros_bridge.allocator``; its line is
+    returned as ``malloc``): a large answer is written into the pages they keep warm.
+    """
+    from vessel_ros_bridge.allocator import share_malloc_arenas
+
+    malloc = share_malloc_arenas()
     from rclpy.serialization import deserialize_message, serialize_message
     from what_if_c.door import response_cdr
 
@@ -140,7 +148,7 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
     messages = batch.messages()
     answer = Predict.Response(success=True, message=why, forecasts=messages, withheld=withheld)
     return {
-        'plans': plans, 'steps': steps, 'model': engine.model_id,
+        'plans': plans, 'steps': steps, 'model': engine.model_id, 'malloc': malloc,
         'plans_withheld': sum(bool(w) for w in withheld),
         'request_kb': round(len(request_cdr) / 1e3, 1),
         'answer_kb': round(len(response_cdr(why, withheld, batch)) / 1e3, 1),
