@@ -13,8 +13,9 @@ withholds) (the request a sampling planner sends: 1,000 plans x 100 steps). Time
 median of ``repeats``: the whole answer (plan checks, the forecast with the wind held
 over the earth, the published frames and bands, the Forecast messages) and its stages,
 with the engine's single pass over the batch as the compute alone; and the request's
-conversion to Python and the answer's writing and serialization, as the door does them
-(in C from the batch's arrays) and as they were done before (Python messages converted).
+reading and the answer's writing and serialization, as the door does them (in C: the
+plans as records, the answer from the batch's arrays) and as they were done before
+(rosidl's Python messages).
 What DDS adds on top is the soak's to measure.
 """
 
@@ -106,7 +107,7 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
 
     malloc = share_malloc_arenas()
     from rclpy.serialization import deserialize_message, serialize_message
-    from what_if_c.door import response_cdr
+    from what_if_c.door import read_request, response_cdr
 
     from hybrid_models.engine import Forecaster
     from hybrid_predictor.core import PredictorCore
@@ -132,7 +133,10 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
             core.push(topic, values['t'], {name: channels[name] for name in names},
                       values['t'], 'odom', time.monotonic())
     now = values['t']
-    requests = candidate_plans(vessel, plans, steps)
+    # The plans as the door gives them: records read in C from the request's bytes.
+    request_cdr = serialize_message(Predict.Request(plans=candidate_plans(vessel, plans,
+                                                                          steps)))
+    requests = read_request(request_cdr).plans
     engine.warm_up(steps, window=engine.window, max_batch=plans)
     with core.lock:
         result = core.assemble(now)
@@ -143,8 +147,6 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
     if not ok:
         raise RuntimeError(f'what-if refused: {why}')
     _, _, arrays = forecast(engine, vessel, result, futures)
-    request = Predict.Request(plans=requests)
-    request_cdr = serialize_message(request)
     messages = batch.messages()
     answer = Predict.Response(success=True, message=why, forecasts=messages, withheld=withheld)
     return {
@@ -154,7 +156,9 @@ def what_if_stages(model, plans: int, steps: int, repeats: int = 5, dataset=None
         'answer_kb': round(len(response_cdr(why, withheld, batch)) / 1e3, 1),
         'answer_ms': _median_ms(lambda: core.what_if(requests, 0.0, now), repeats),
         'stages_ms': {
-            'request read into Python': _median_ms(
+            'request read in C into records (as the door does, with its CDR)': _median_ms(
+                lambda: read_request(request_cdr), repeats),
+            'before: request read into rosidl messages': _median_ms(
                 lambda: deserialize_message(request_cdr, Predict.Request), repeats),
             'plan checks': _median_ms(lambda: check_plan_messages(requests, steps,
                                                                   core.limits), repeats),

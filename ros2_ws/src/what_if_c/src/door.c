@@ -39,6 +39,7 @@
 
 #include "forecast_batch.h"
 #include "message_class.h"
+#include "plan_records.h"
 #include "rcl_check.h"
 
 #define MAX_CAPACITY 64
@@ -239,8 +240,7 @@ typedef struct
   bool closing;          /* the thread stops; take() gives None once the queue is empty */
   bool shut;             /* close() under way: nothing more is sent */
   char failure[1200];    /* why the door's thread stopped, if it did */
-  PyObject * request_class, * response_class;
-  convert_to_py_t * request_to_py;
+  PyObject * response_class;
   convert_from_py_t * response_from_py;
   hybrid_predictor_interfaces__srv__Predict_Response refusal;   /* the thread's own */
 } DoorObject;
@@ -376,19 +376,17 @@ static int Door_init(DoorObject * self, PyObject * args, PyObject * kwargs)
     PyErr_SetString(PyExc_ValueError, "node and context must be rcl pointers");
     return -1;
   }
-  self->request_class = PyObject_GetAttrString(srv_type, "Request");
   self->response_class = PyObject_GetAttrString(srv_type, "Response");
   PyObject * support = PyObject_GetAttrString((PyObject *)Py_TYPE(srv_type), "_TYPE_SUPPORT");
-  if (!self->request_class || !self->response_class || !support) {
+  if (!self->response_class || !support) {
     Py_XDECREF(support);
     return -1;
   }
   const rosidl_service_type_support_t * type_support = support == Py_None ? NULL :
     PyCapsule_GetPointer(support, NULL);
   Py_DECREF(support);
-  self->request_to_py = capsule_function(self->request_class, "_CONVERT_TO_PY").to_py;
   self->response_from_py = capsule_function(self->response_class, "_CONVERT_FROM_PY").from_py;
-  if (!type_support || !self->request_to_py || !self->response_from_py) {
+  if (!type_support || !self->response_from_py) {
     if (!PyErr_Occurred()) {
       PyErr_SetString(PyExc_ValueError,
         "srv_type's support is not loaded (rclpy.type_support.check_for_type_support)");
@@ -512,7 +510,7 @@ static PyObject * Door_take(DoorObject * self, PyObject * unused)
   pthread_mutex_unlock(&self->lock);
   Py_END_ALLOW_THREADS
   if (slot < 0) {Py_RETURN_NONE;}
-  PyObject * request = self->request_to_py(message);
+  PyObject * request = request_records(message);
   hybrid_predictor_interfaces__srv__Predict_Request__destroy(message);
   pthread_mutex_lock(&self->lock);
   unsigned token = ((unsigned)self->slots[slot].generation << 8) | (unsigned)slot;
@@ -738,7 +736,6 @@ static void Door_dealloc(DoorObject * self)
     pthread_cond_destroy(&self->waiting);
     pthread_cond_destroy(&self->idle);
   }
-  Py_XDECREF(self->request_class);
   Py_XDECREF(self->response_class);
   Py_TYPE(self)->tp_free((PyObject *)self);
 }
@@ -746,7 +743,8 @@ static void Door_dealloc(DoorObject * self)
 static PyMethodDef DOOR_METHODS[] = {
   {"take", (PyCFunction)Door_take, METH_NOARGS,
     "take() -> (token, request), the next admitted request, waiting for one without the "
-    "interpreter lock; None once the door is closed."},
+    "interpreter lock; None once the door is closed. The request is a read-only Request "
+    "record (plans, answer_period), each plan a Plan record with ControlPlan's fields."},
   {"answer", (PyCFunction)Door_answer, METH_VARARGS,
     "answer(token, response): send the answer to the request take() gave with token, "
     "and free its place."},
@@ -808,7 +806,36 @@ static PyObject * response_cdr(PyObject * module, PyObject * what)
   return bytes;
 }
 
+/* The records take() gives for the request of these CDR bytes, for the tests. */
+static PyObject * read_request(PyObject * module, PyObject * args)
+{
+  (void)module;
+  Py_buffer cdr;
+  if (!PyArg_ParseTuple(args, "y*", &cdr)) {return NULL;}
+  hybrid_predictor_interfaces__srv__Predict_Request * message =
+    hybrid_predictor_interfaces__srv__Predict_Request__create();
+  PyObject * request = NULL;
+  if (!message) {
+    PyErr_NoMemory();
+  } else {
+    rmw_serialized_message_t bytes = rmw_get_zero_initialized_serialized_message();
+    bytes.buffer = cdr.buf;
+    bytes.buffer_length = bytes.buffer_capacity = (size_t)cdr.len;
+    if (check_rcl(rmw_deserialize(&bytes, ROSIDL_GET_MSG_TYPE_SUPPORT(
+        hybrid_predictor_interfaces, srv, Predict_Request), message), "rmw_deserialize"))
+    {
+      request = request_records(message);
+    }
+    hybrid_predictor_interfaces__srv__Predict_Request__destroy(message);
+  }
+  PyBuffer_Release(&cdr);
+  return request;
+}
+
 static PyMethodDef MODULE_METHODS[] = {
+  {"read_request", (PyCFunction)read_request, METH_VARARGS,
+    "read_request(cdr) -> Request: the records Door.take gives for a Predict request of "
+    "these CDR bytes (rclpy's serialize_message)."},
   {"response_cdr", (PyCFunction)response_cdr, METH_VARARGS,
     "response_cdr(message, withheld, batch) -> bytes: the CDR of the successful answer "
     "Door.answer_batch sends for these."},
@@ -828,7 +855,8 @@ PyMODINIT_FUNC PyInit__door(void)
   if (!module) {return NULL;}
   if (PyModule_AddObjectRef(module, "Hint", (PyObject *)&HintType) < 0 ||
     PyModule_AddObjectRef(module, "Door", (PyObject *)&DoorType) < 0 ||
-    PyModule_AddIntConstant(module, "MAX_CAPACITY", MAX_CAPACITY) < 0)
+    PyModule_AddIntConstant(module, "MAX_CAPACITY", MAX_CAPACITY) < 0 ||
+    plan_records_init(module) < 0)
   {
     Py_DECREF(module);
     return NULL;
