@@ -123,3 +123,27 @@ def test_a_malformed_batch_is_refused_in_one_line(change, says):
                                 **change)
     with pytest.raises((TypeError, ValueError), match=says):
         response_cdr('', [''] * B, batch)
+
+
+@pytest.mark.parametrize('stride', [1, 2])
+def test_published_bands_are_the_frd_bands_turned_into_flu(stride):
+    from types import SimpleNamespace
+
+    from hybrid_predictor.forecasting import published
+    from vessel_physics import frames
+
+    vessel = load_vessel('patrol_boat')   # v, p, r change sign in FLU; u, phi do not
+    rng = np.random.default_rng(3)
+    n, h = vessel.n_state, 6
+    hybrid = rng.normal(size=(B, h, n))
+    offsets = np.sort(rng.normal(size=(2, len(LEVELS), h, n)), axis=0)
+    offsets[:, :, -1] = np.nan   # beyond the calibrated horizon
+    radius = rng.random((len(LEVELS), h))
+    bands = SimpleNamespace(at=lambda horizon: (offsets[0], offsets[1], radius))
+    out = published(vessel, (0.0, 0.0, 0.0), hybrid, hybrid, bands, stride)
+    keep = slice(stride - 1, None, stride)
+    want = frames.interval_frd_to_flu(hybrid[:, None] + offsets[0], hybrid[:, None] + offsets[1],
+                                      vessel.state_names)
+    np.testing.assert_array_equal(out.band_lower, want[0][:, :, keep])   # to the bit
+    np.testing.assert_array_equal(out.band_upper, want[1][:, :, keep])
+    np.testing.assert_array_equal(out.band_radius, radius[:, keep])

@@ -118,18 +118,6 @@ class Bands:
             a.flags.writeable = False
         return lower, upper, position
 
-    def bounds(self, forecast: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """
-        Return the bands around forecasts (..., H, n_state) as states, and position radii.
-
-        (lower, upper) of shape (..., levels, H, n_state), in the forecast's frame and
-        units, and radii (levels, H) in m; NaN beyond the calibrated horizon.
-        """
-        forecast = np.asarray(forecast, np.float64)
-        lower, upper, position = self.at(forecast.shape[-2])
-        around = forecast[..., None, :, :]
-        return around + lower, around + upper, position
-
     @property
     def origin(self) -> str:
         """Return what the bands were calibrated on, as one phrase."""

@@ -104,9 +104,13 @@ def published(spec, pose, hybrid: np.ndarray, physics: np.ndarray, bands=None,
                heading=frames.heading_ned_to_enu(path.heading[..., keep]), z=z,
                bound_available=None if available is None else available[:, keep])
     if bands is not None:
-        lower, upper, radius = bands.bounds(hybrid)
-        out['band_lower'], out['band_upper'] = frames.interval_frd_to_flu(
-            lower[..., keep, :], upper[..., keep, :], names)
+        # The bands are the forecast plus offsets a level and step share: the offsets are
+        # turned into FLU (levels, K, n) and added to the FLU forecast, the same numbers
+        # as the bands turned whole, in a third of the passes over the batch.
+        lower, upper, radius = bands.at(hybrid.shape[1])
+        lower, upper = frames.interval_frd_to_flu(lower[:, keep], upper[:, keep], names)
+        around = out['hybrid'][:, None]
+        out['band_lower'], out['band_upper'] = around + lower, around + upper
         out['band_radius'] = radius[..., keep]
     return Published(**out)
 
