@@ -59,3 +59,11 @@ def test_the_checks_take_the_records_as_they_take_the_messages():
     with pytest.raises(PlanError, match=re.escape(str(by_message.value))):
         check_plan_messages(read, H, limits)
     assert str(by_message.value).startswith('plan 2: n[0] = 10000 outside')
+
+
+def test_malformed_text_is_read_with_replacements_not_refused():
+    request = Predict.Request(plans=[ControlPlan(plan_id='QQQQ', control_names=['n'])])
+    cdr = serialize_message(request)
+    assert cdr.count(b'QQQQ') == 1
+    read = read_request(cdr.replace(b'QQQQ', b'Q\xff\xfeQ'))   # not UTF-8
+    assert read.plans[0].plan_id == 'Q\ufffd\ufffdQ' and read.plans[0].control_names == ('n',)

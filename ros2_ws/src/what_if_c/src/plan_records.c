@@ -51,7 +51,8 @@ int plan_records_init(PyObject * module)
 
 static PyObject * text(const rosidl_runtime_c__String * s)
 {
-  return PyUnicode_DecodeUTF8(s->data ? s->data : "", (Py_ssize_t)s->size, "strict");
+  /* A client's malformed UTF-8 is replaced, not fatal: the checks then name what is wrong. */
+  return PyUnicode_DecodeUTF8(s->data ? s->data : "", (Py_ssize_t)s->size, "replace");
 }
 
 static PyObject * texts(const rosidl_runtime_c__String__Sequence * s)
