@@ -59,14 +59,19 @@ def _field_by_field(served, t_end, arrays, i, assumed):
     return msg
 
 
+def _served_and_assumed(rng, vessel):
+    served = Served(vessel, 'odom', 'base_link', 'model@1', rng.random(vessel.n_state), 0.2,
+                    True, LEVELS, 'calibrated on 3 runs')
+    assumed = [Assumed(Forecast.CONTROLS_PLAN, f'plan-{i}', messages.stamp_from_seconds(i + 0.5))
+               for i in range(B - 1)] + [Assumed()]
+    return served, assumed
+
+
 def test_each_message_carries_its_own_forecast_and_the_batch_alike():
     vessel = load_vessel('patrol_boat')
     rng = np.random.default_rng(0)
     arrays = _batch(rng, vessel)
-    served = Served(vessel, 'odom', 'base_link', 'model@1', rng.random(vessel.n_state), 0.2,
-                    True, LEVELS, 'calibrated on 3 runs')
-    assumed = [Assumed(Forecast.CONTROLS_PLAN, f'plan-{i}', messages.stamp_from_seconds(i))
-               for i in range(B - 1)] + [Assumed()]
+    served, assumed = _served_and_assumed(rng, vessel)
     out = forecast_messages(served, 123.25, arrays, assumed)
     assert len(out) == B
     for i, msg in enumerate(out):
@@ -77,14 +82,6 @@ def test_each_message_carries_its_own_forecast_and_the_batch_alike():
     assert out[0].horizon == 0 and len(out[0].hybrid) == len(out[0].bound_available) == 0
     assert out[1].horizon == K and list(out[1].hybrid) == arrays.hybrid[1].ravel().tolist()
     assert out[2].plan_id == '' and out[1].plan_id == 'plan-1'
-
-
-def _served_and_assumed(rng, vessel):
-    served = Served(vessel, 'odom', 'base_link', 'model@1', rng.random(vessel.n_state), 0.2,
-                    True, LEVELS, 'calibrated on 3 runs')
-    assumed = [Assumed(Forecast.CONTROLS_PLAN, f'plan-{i}', messages.stamp_from_seconds(i + 0.5))
-               for i in range(B - 1)] + [Assumed()]
-    return served, assumed
 
 
 def test_the_door_writes_the_batch_in_c_as_the_messages_say():

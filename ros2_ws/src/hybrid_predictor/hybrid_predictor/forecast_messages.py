@@ -96,7 +96,8 @@ class ForecastBatch:
         """Return the Forecast messages, each a shallow copy of the template (never edit)."""
         # A shallow copy of one filled message is a third of a message built field by
         # field; each row is read from the batch's bytes at one copy.
-        views = {name: memoryview(rows).cast('B') for name, rows in self.rows.items()}
+        views = {name: (memoryview(rows).cast('B'), rows[0].nbytes)
+                 for name, rows in self.rows.items()}
         out = []
         for i in range(len(self)):
             msg = copy.copy(self.template)
@@ -107,9 +108,8 @@ class ForecastBatch:
             if self.emptied[i]:
                 no_steps(msg)
             else:
-                for name, view in views.items():
+                for name, (view, size) in views.items():
                     row = array('d')
-                    size = len(view) // len(self)
                     row.frombytes(view[i * size:(i + 1) * size])
                     setattr(msg, name, row)
             out.append(msg)

@@ -57,11 +57,11 @@ def share_malloc_arenas(environ: Mapping[str, str] = os.environ) -> str:
     starts threads (module docstring); a later call returns the first one's note.
     """
     if not _done:
-        _done.append(_limit_arenas(environ))
+        _done.append(_set_malloc(environ))
     return _done[0]
 
 
-def _limit_arenas(environ: Mapping[str, str]) -> str:
+def _set_malloc(environ: Mapping[str, str]) -> str:
     libc = ctypes.CDLL(None)
     if not hasattr(libc, 'gnu_get_libc_version'):
         return 'malloc: not glibc, its own arenas'
@@ -84,22 +84,25 @@ def _limit_arenas(environ: Mapping[str, str]) -> str:
     return f'malloc: {arenas}; {kept}'
 
 
+def _set_by_user(environ: Mapping[str, str], variables: tuple[str, ...],
+                 tunables: tuple[str, ...]) -> list[str]:
+    """Return the environment variables (of ``variables``, or GLIBC_TUNABLES) that are set."""
+    own = [name for name in variables if environ.get(name)]
+    if any(t in environ.get('GLIBC_TUNABLES', '') for t in tunables):
+        own.append('GLIBC_TUNABLES')
+    return own
+
+
 def user_setting(environ: Mapping[str, str]) -> str | None:
     """Return the environment variable by which the user set the arenas, or None."""
-    if environ.get('MALLOC_ARENA_MAX'):
-        return 'MALLOC_ARENA_MAX'
-    if 'malloc.arena_max' in environ.get('GLIBC_TUNABLES', ''):
-        return 'GLIBC_TUNABLES'
-    return None
+    own = _set_by_user(environ, ('MALLOC_ARENA_MAX',), ('malloc.arena_max',))
+    return own[0] if own else None
 
 
 def user_thresholds(environ: Mapping[str, str]) -> str | None:
     """Return the environment variables by which the user set large blocks, or None."""
-    own = [name for name in ('MALLOC_MMAP_THRESHOLD_', 'MALLOC_TRIM_THRESHOLD_')
-           if environ.get(name)]
-    tunables = environ.get('GLIBC_TUNABLES', '')
-    if 'malloc.mmap_threshold' in tunables or 'malloc.trim_threshold' in tunables:
-        own.append('GLIBC_TUNABLES')
+    own = _set_by_user(environ, ('MALLOC_MMAP_THRESHOLD_', 'MALLOC_TRIM_THRESHOLD_'),
+                       ('malloc.mmap_threshold', 'malloc.trim_threshold'))
     return ', '.join(own) or None
 
 

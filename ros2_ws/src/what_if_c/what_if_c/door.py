@@ -32,22 +32,25 @@ def open_door(node, name: str, capacity: int, longest: float) -> Door:
     """Return a Door serving ``Predict`` as ``name`` (resolved by rcl) on ``node``."""
     from rclpy.type_support import check_for_type_support
 
-    from hybrid_predictor_interfaces.msg import Forecast
     from hybrid_predictor_interfaces.srv import Predict
 
-    # The door answers busy with Predict's own C message: it serves no other type; and
-    # writes Forecasts from a batch's template, converted by Forecast's own support.
+    # The door answers busy with Predict's own C message: it serves no other type.
     check_for_type_support(Predict)
-    check_for_type_support(Forecast)
+    _load_forecast_support()
     return Door(node.handle.pointer, node.context.handle.pointer, name, Predict, capacity,
                 longest)
 
 
 def response_cdr(message: str, withheld: list[str], batch) -> bytes:
     """Return the CDR bytes of the successful answer ``Door.answer_batch`` sends for these."""
+    _load_forecast_support()
+    return _door.response_cdr(message, withheld, batch)
+
+
+def _load_forecast_support() -> None:
+    """Load Forecast's C support: a batch's template is converted by Forecast's own."""
     from rclpy.type_support import check_for_type_support
 
     from hybrid_predictor_interfaces.msg import Forecast
 
     check_for_type_support(Forecast)
-    return _door.response_cdr(message, withheld, batch)
